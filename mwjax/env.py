@@ -1,0 +1,469 @@
+"""The functional core: every task of a set in one batched state, one jitted `reset` and `step`.
+
+The batch is laid out task by task (`envs_per_task` rows each), tasks that share a scene next to
+each other so that the physics seam (`mwjax.physics`) can run one batch per scene. Task code runs
+vmapped over each task's rows; nothing here knows what a task does.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+from collections.abc import Sequence
+from importlib import resources
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from mujoco import mjx
+
+from mwjax.benchmarks import sample_goal_variants, task_names
+from mwjax.physics import Physics, PhysicsConfig
+from mwjax.tasks import get_task
+from mwjax.tasks.spec import Frame, Kinematics, Placement, StepInputs, TaskSpec
+
+Array = jax.Array
+
+OBS_SIZE = 39
+MAX_EPISODE_STEPS = 500
+_OBJECT_OBS = 14  # up to two objects, position + quaternion each
+_HAND_SPACE_LOW = np.array([-0.525, 0.348, -0.0525], np.float32)
+_HAND_SPACE_HIGH = np.array([0.525, 1.025, 0.7], np.float32)
+_HAND_QUAT = np.array([1.0, 0.0, 1.0, 0.0], np.float32)
+_ACTION_SCALE = 1.0 / 100
+
+
+@jax.tree_util.register_dataclass
+@dataclasses.dataclass(frozen=True)
+class State:
+    """The whole batch. Per-env arrays have a leading axis of `env.num_envs`."""
+
+    physics: tuple[mjx.Data, ...]
+    obs: Array
+    reward: Array
+    terminated: Array
+    truncated: Array
+    info: dict[str, Array]
+    steps: Array
+    target_pos: Array
+    constants: dict[str, Array]
+    key: Array
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class _TaskRows:
+    spec: TaskSpec
+    group: int
+    start: int  # first row in the env batch
+    local_start: int  # first row in its physics group
+    size: int
+    settled: Kinematics
+    # The rest of the settled data a reset copies: mocap_pos, mocap_quat, qacc_warmstart, ctrl.
+    settled_data: dict[str, np.ndarray]
+
+
+def _load_settled(name: str) -> tuple[Kinematics, dict[str, np.ndarray]]:
+    path = resources.files("mwjax.tasks") / "settled_states.npz"
+    with resources.as_file(path) as file, np.load(file) as archive:
+        fields = {
+            key.split("/", 1)[1]: archive[key].astype(np.float32)
+            for key in archive.files
+            if key.startswith(name + "/")
+        }
+    if not fields:
+        raise ValueError(f"no settled state recorded for {name!r}")
+    kin = Kinematics(*(jnp.asarray(fields[f]) for f in Kinematics._fields))
+    return kin, fields
+
+
+class Env:
+    """A batched Meta-World task set. Build it with `mwjax.make`."""
+
+    def __init__(
+        self,
+        tasks: str | Sequence[str],
+        envs_per_task: int,
+        seed: int = 0,
+        reward_version: str = "v2",
+        partially_observable: bool = False,
+        max_episode_steps: int = MAX_EPISODE_STEPS,
+        autoreset: bool = True,
+        physics: PhysicsConfig | None = None,
+    ) -> None:
+        if reward_version != "v2":
+            raise ValueError(f"reward_version must be 'v2' (v1 is not ported yet), got {reward_version!r}")
+        if not isinstance(envs_per_task, int) or envs_per_task < 1:
+            raise ValueError(f"envs_per_task must be a positive int, got {envs_per_task!r}")
+        if max_episode_steps < 1:
+            raise ValueError(f"max_episode_steps must be positive, got {max_episode_steps}")
+        names = task_names(tasks)
+        self.reward_version = reward_version
+        self.partially_observable = partially_observable
+        self.max_episode_steps = max_episode_steps
+        self.autoreset = autoreset
+        self.envs_per_task = envs_per_task
+
+        specs = [get_task(name) for name in names]
+        scenes = list(dict.fromkeys(spec.scene for spec in specs))
+        ordered = [spec for scene in scenes for spec in specs if spec.scene == scene]
+        group_specs = [[s for s in ordered if s.scene == scene] for scene in scenes]
+        self.physics = Physics(
+            [
+                (
+                    scene,
+                    tuple(sorted({b for s in members for b in s.moved_bodies})),
+                    len(members) * envs_per_task,
+                )
+                for scene, members in zip(scenes, group_specs)
+            ],
+            physics or PhysicsConfig(),
+        )
+        rows: list[_TaskRows] = []
+        for g, members in enumerate(group_specs):
+            for k, spec in enumerate(members):
+                settled, raw = _load_settled(spec.name)
+                rows.append(
+                    _TaskRows(
+                        spec=spec,
+                        group=g,
+                        start=self.physics.groups[g].start + k * envs_per_task,
+                        local_start=k * envs_per_task,
+                        size=envs_per_task,
+                        settled=settled,
+                        settled_data=raw,
+                    )
+                )
+        self._rows = tuple(rows)
+        self.task_list = tuple(r.spec.name for r in rows)
+        self.num_envs = len(rows) * envs_per_task
+        self.task_names = tuple(name for name in self.task_list for _ in range(envs_per_task))
+        self.task_ids = np.repeat(np.arange(len(rows)), envs_per_task)
+
+        variants = sample_goal_variants(names, seed)
+        self.goal_variants = {name: variants[name] for name in self.task_list}
+        width = max(v.shape[1] for v in variants.values())
+        self._variants = jnp.asarray(
+            np.stack([np.pad(variants[n], ((0, 0), (0, width - variants[n].shape[1]))) for n in self.task_list]),
+            jnp.float32,
+        )
+
+        def per_env(values: Sequence[Any]) -> jnp.ndarray:
+            return jnp.asarray(np.repeat(np.asarray(values, np.float32), envs_per_task, axis=0))
+
+        self._mocap_low = per_env([r.spec.mocap_bounds[0] for r in rows])
+        self._mocap_high = per_env([r.spec.mocap_bounds[1] for r in rows])
+        self._goal_low = per_env([r.spec.goal_low for r in rows])
+        self._goal_high = per_env([r.spec.goal_high for r in rows])
+
+    # ----------------------------------------------------------------------------------------
+    # Public functional API
+
+    def reset(self, key: Array) -> State:
+        """A fresh episode in every env; each env draws its goal variant from its own key."""
+        keys = jax.random.split(key, self.num_envs)
+        rand_vecs, keys = self._draw_variants(keys)
+        return self._reset_rows(self.physics.make_data(), rand_vecs, keys, jnp.ones(self.num_envs, bool))
+
+    def reset_to(self, rand_vecs: Array, key: Array | None = None) -> State:
+        """A fresh episode in every env with the given goal variants (`(num_envs, d)`, the
+        reference's `rand_vec`, zero-padded to the widest task of the set)."""
+        rand_vecs = jnp.asarray(rand_vecs, jnp.float32)
+        if rand_vecs.shape != (self.num_envs, self._variants.shape[2]):
+            raise ValueError(f"rand_vecs must have shape {(self.num_envs, self._variants.shape[2])}, got {rand_vecs.shape}")
+        keys = jax.random.split(jax.random.key(0) if key is None else key, self.num_envs)
+        return self._reset_rows(self.physics.make_data(), rand_vecs, keys, jnp.ones(self.num_envs, bool))
+
+    def with_physics_state(
+        self, state: State, qpos: Array, qvel: Array, hand_mocap_pos: Array, hand_mocap_quat: Array
+    ) -> State:
+        """`state` with every env's dynamic physics state replaced (e.g. by a recorded one);
+        kinematics are recomputed, observations and rewards are left for `observe`."""
+        datas = []
+        for group, data in zip(self.physics.groups, state.physics):
+            rows = slice(group.start, group.start + group.size)
+            datas.append(
+                data.replace(
+                    qpos=jnp.asarray(qpos[rows], jnp.float32),
+                    qvel=jnp.asarray(qvel[rows], jnp.float32),
+                    mocap_pos=data.mocap_pos.at[:, 0].set(jnp.asarray(hand_mocap_pos[rows], jnp.float32)),
+                    mocap_quat=data.mocap_quat.at[:, 0].set(jnp.asarray(hand_mocap_quat[rows], jnp.float32)),
+                )
+            )
+        return dataclasses.replace(state, physics=self.physics.kinematics(tuple(datas)))
+
+    def observe(self, state: State, action: Array) -> State:
+        """Observation, reward and success of the current physics state, as the reference computes
+        them after a step with `action`; `state.obs[:, :18]` is taken as the previous frame."""
+        obs, reward, info = self._observe_and_reward(self._kinematics(state.physics), state, action)
+        info["invalid_action"] = state.info["invalid_action"]
+        return dataclasses.replace(state, obs=obs, reward=reward, info=info)
+
+    def step(self, state: State, action: Array) -> State:
+        """One env step for the whole batch (5 physics steps), with rewards and autoreset."""
+        action = self._check_action(action)
+        valid = jnp.all(jnp.isfinite(action), axis=-1)
+        action = jnp.where(valid[:, None], action, 0.0)
+
+        datas = self.physics.step(self._apply_action(state.physics, action))
+        kin = self._kinematics(datas)
+        obs, reward, info = self._observe_and_reward(kin, state, action)
+        info["invalid_action"] = ~valid
+        steps = state.steps + 1
+        truncated = steps >= self.max_episode_steps
+        terminated = jnp.zeros_like(truncated)
+        stepped = dataclasses.replace(
+            state,
+            physics=datas,
+            obs=obs,
+            reward=reward,
+            terminated=terminated,
+            truncated=truncated,
+            info=info,
+            steps=steps,
+        )
+        if not self.autoreset:
+            return stepped
+        done = terminated | truncated
+        return jax.lax.cond(
+            jnp.any(done), lambda s: self._autoreset(s, done), lambda s: self._with_final(s, done), stepped
+        )
+
+    # ----------------------------------------------------------------------------------------
+    # Reset
+
+    def _draw_variants(self, keys: Array) -> tuple[Array, Array]:
+        """Each env picks one of its task's goal variants; returns them and the envs' next keys."""
+        split = jax.vmap(jax.random.split)(keys)
+        index = jax.vmap(lambda k: jax.random.randint(k, (), 0, self._variants.shape[1]))(split[:, 0])
+        return self._variants[jnp.asarray(self.task_ids), index], split[:, 1]
+
+    def _reset_rows(self, datas: tuple[mjx.Data, ...], rand_vecs: Array, keys: Array, done: Array) -> State:
+        """Fresh episodes in the rows where `done`; the other rows' physics is kept as is."""
+        placements = []
+        new_datas = list(datas)
+        for g, group in enumerate(self.physics.groups):
+            members = [r for r in self._rows if r.group == g]
+            parts = []
+            for rows in members:
+                vecs = rand_vecs[rows.start : rows.start + rows.size, : len(rows.spec.random_low)]
+                settled_frame = Frame(group.model, rows.settled)
+                placement = jax.vmap(lambda v, s=settled_frame, f=rows.spec.place: f(v, s))(vecs)
+                placements.append(placement)
+                parts.append((rows, placement))
+            new_datas[g] = self._placed_data(datas[g], group, parts, done[group.start : group.start + group.size])
+        datas = self.physics.kinematics(tuple(new_datas))
+        kin = self._kinematics(datas)
+
+        curr_parts, target_parts, constant_parts = [], [], []
+        for rows, placement in zip(self._rows, placements):
+            frames = kin[rows.group].rows(rows.local_start, rows.local_start + rows.size)
+            model = self.physics.groups[rows.group].model
+            settled_frame = Frame(model, rows.settled)
+
+            def one(k: Kinematics, p: Placement, rows: _TaskRows = rows, model: Any = model,
+                    settled: Frame = settled_frame) -> tuple[Array, dict[str, Array]]:
+                frame = Frame(model, k)
+                return _current_obs(rows.spec, frame), rows.spec.constants(frame, p, settled)
+
+            curr, constants = jax.vmap(one)(frames, placement)
+            curr_parts.append(curr)
+            target_parts.append(placement.target_pos)
+            constant_parts.append(constants)
+        curr = jnp.concatenate(curr_parts)
+        target = jnp.concatenate(target_parts).astype(jnp.float32)
+        goal = jnp.zeros_like(target) if self.partially_observable else target
+        obs = jnp.concatenate([curr, curr, goal], axis=-1)
+        zeros = jnp.zeros(self.num_envs, jnp.float32)
+        info = {name: zeros for name in ("success", "near_object", "grasp_reward", "in_place_reward",
+                                         "obj_to_target", "unscaled_reward")}
+        info["success"] = jnp.zeros(self.num_envs, bool)
+        info["invalid_action"] = jnp.zeros(self.num_envs, bool)
+        return State(
+            physics=datas,
+            obs=obs,
+            reward=zeros,
+            terminated=jnp.zeros(self.num_envs, bool),
+            truncated=jnp.zeros(self.num_envs, bool),
+            info=info,
+            steps=jnp.zeros(self.num_envs, jnp.int32),
+            target_pos=target,
+            constants=_merge_constants(constant_parts, [r.size for r in self._rows]),
+            key=keys,
+        )
+
+    def _placed_data(
+        self, data: mjx.Data, group: Any, parts: list[tuple[_TaskRows, Placement]], done: Array
+    ) -> mjx.Data:
+        model = group.model
+        mocap_pos, mocap_quat, qpos, qvel, warm, ctrl = [], [], [], [], [], []
+        for rows, placement in parts:
+            n = rows.size
+            pos = np.broadcast_to(model.body_pos[model.body_mocapid >= 0], (n, model.nmocap, 3))
+            quat = np.broadcast_to(model.body_quat[model.body_mocapid >= 0], (n, model.nmocap, 4))
+            # body_mocapid order is body order, which is mocap index order.
+            pos = jnp.asarray(pos, jnp.float32).at[:, 0].set(rows.settled_data["mocap_pos"][0])
+            quat = jnp.asarray(quat, jnp.float32).at[:, 0].set(rows.settled_data["mocap_quat"][0])
+            for name, value in placement.moved_bodies.items():
+                index = int(model.body_mocapid[model.body(name).id])
+                pos = pos.at[:, index].set(value)
+            mocap_pos.append(pos)
+            mocap_quat.append(quat)
+            qpos.append(placement.qpos)
+            qvel.append(placement.qvel)
+            warm.append(jnp.broadcast_to(rows.settled_data["qacc_warmstart"], (n, model.nv)))
+            ctrl.append(jnp.broadcast_to(rows.settled_data["ctrl"], (n, model.nu)))
+        fresh = {
+            "qpos": qpos, "qvel": qvel, "mocap_pos": mocap_pos, "mocap_quat": mocap_quat,
+            "qacc_warmstart": warm, "ctrl": ctrl,
+        }
+        # These fields are the whole dynamic state; everything else is derived from them.
+        fields = {
+            name: _select(done, jnp.concatenate(parts).astype(jnp.float32), getattr(data, name))
+            for name, parts in fresh.items()
+        }
+        return data.replace(time=jnp.where(done, 0.0, data.time), **fields)
+
+    def _autoreset(self, state: State, done: Array) -> State:
+        rand_vecs, keys = self._draw_variants(state.key)
+        fresh = self._reset_rows(state.physics, rand_vecs, keys, done)
+        final = self._with_final(state, done)
+        pick = functools.partial(_select, done)
+        return dataclasses.replace(
+            final,
+            physics=fresh.physics,
+            obs=pick(fresh.obs, state.obs),
+            steps=jnp.where(done, 0, state.steps),
+            target_pos=pick(fresh.target_pos, state.target_pos),
+            constants=jax.tree.map(pick, fresh.constants, state.constants),
+            key=pick(fresh.key, state.key),
+        )
+
+    @staticmethod
+    def _with_final(state: State, done: Array) -> State:
+        """Autoreset keeps the finished episode's last observation in `info["final_obs"]`."""
+        info = dict(state.info)
+        info["final_obs"] = state.obs
+        return dataclasses.replace(state, info=info)
+
+    # ----------------------------------------------------------------------------------------
+    # Step
+
+    def _check_action(self, action: Any) -> Array:
+        shape = getattr(action, "shape", None)
+        if shape != (self.num_envs, 4):
+            raise ValueError(f"actions must have shape ({self.num_envs}, 4), got {shape}")
+        dtype = getattr(action, "dtype", None)
+        if dtype is None or not jnp.issubdtype(dtype, jnp.floating):
+            raise ValueError(f"actions must be floating point, got dtype {dtype}")
+        if not isinstance(action, jax.core.Tracer) and not bool(np.all(np.isfinite(np.asarray(action)))):
+            raise ValueError("actions contain NaN or inf")
+        return jnp.asarray(action, jnp.float32)
+
+    def _apply_action(self, datas: tuple[mjx.Data, ...], action: Array) -> tuple[mjx.Data, ...]:
+        """metaworld's set_xyz_action and gripper control: the hand's mocap moves by
+        clip(a, -1, 1) / 100 within the task's mocap box; the fingers get [a3, -a3]."""
+        delta = jnp.clip(action[:, :3], -1.0, 1.0) * _ACTION_SCALE
+        out = []
+        for group, data in zip(self.physics.groups, datas):
+            rows = slice(group.start, group.start + group.size)
+            hand = jnp.clip(data.mocap_pos[:, 0] + delta[rows], self._mocap_low[rows], self._mocap_high[rows])
+            out.append(
+                data.replace(
+                    mocap_pos=data.mocap_pos.at[:, 0].set(hand),
+                    mocap_quat=data.mocap_quat.at[:, 0].set(jnp.asarray(_HAND_QUAT)),
+                    ctrl=jnp.stack([action[rows, 3], -action[rows, 3]], axis=-1),
+                )
+            )
+        return tuple(out)
+
+    def _kinematics(self, datas: tuple[mjx.Data, ...]) -> tuple[Kinematics, ...]:
+        return tuple(Kinematics.of(d) for d in datas)
+
+    def _observe_and_reward(
+        self, kin: tuple[Kinematics, ...], state: State, action: Array
+    ) -> tuple[Array, Array, dict[str, Array]]:
+        curr_parts = []
+        for rows in self._rows:
+            model = self.physics.groups[rows.group].model
+            frames = kin[rows.group].rows(rows.local_start, rows.local_start + rows.size)
+            curr_parts.append(
+                jax.vmap(lambda k, m=model, spec=rows.spec: _current_obs(spec, Frame(m, k)))(frames)
+            )
+        curr = jnp.concatenate(curr_parts)
+        goal = jnp.zeros_like(state.target_pos) if self.partially_observable else state.target_pos
+        obs = jnp.concatenate([curr, state.obs[:, :18], goal], axis=-1)
+        obs = self._clip_obs(obs)
+
+        rewards, infos = [], []
+        for rows in self._rows:
+            model = self.physics.groups[rows.group].model
+            frames = kin[rows.group].rows(rows.local_start, rows.local_start + rows.size)
+            sl = slice(rows.start, rows.start + rows.size)
+            constants = {k: v[sl] for k, v in state.constants.items()}
+
+            def one(k: Kinematics, o: Array, a: Array, t: Array, c: dict[str, Array],
+                    m: Any = model, spec: TaskSpec = rows.spec) -> tuple[Array, dict[str, Array]]:
+                return spec.reward_v2(StepInputs(frame=Frame(m, k), obs=o, action=a, target_pos=t, constants=c))
+
+            reward, info = jax.vmap(one)(frames, obs[sl], action[sl], state.target_pos[sl], constants)
+            rewards.append(reward)
+            infos.append(info)
+        info = {k: jnp.concatenate([i[k] for i in infos]) for k in infos[0]}
+        info["success"] = info["success"] > 0
+        return obs, jnp.concatenate(rewards).astype(jnp.float32), info
+
+    def _clip_obs(self, obs: Array) -> Array:
+        """The reference clips step observations to its observation space."""
+        inf = jnp.full((self.num_envs, _OBJECT_OBS), jnp.inf)
+        hand_low = jnp.broadcast_to(jnp.asarray(_HAND_SPACE_LOW), (self.num_envs, 3))
+        hand_high = jnp.broadcast_to(jnp.asarray(_HAND_SPACE_HIGH), (self.num_envs, 3))
+        minus_one, one = -jnp.ones((self.num_envs, 1)), jnp.ones((self.num_envs, 1))
+        if self.partially_observable:
+            goal_low = goal_high = jnp.zeros((self.num_envs, 3))
+        else:
+            goal_low, goal_high = self._goal_low, self._goal_high
+        low = jnp.concatenate([hand_low, minus_one, -inf, hand_low, minus_one, -inf, goal_low], axis=-1)
+        high = jnp.concatenate([hand_high, one, inf, hand_high, one, inf, goal_high], axis=-1)
+        return jnp.clip(obs, low, high)
+
+
+def _select(mask: Array, new: Array, old: Array) -> Array:
+    """Row-wise `where` for arrays with a leading batch axis."""
+    return jnp.where(mask.reshape(mask.shape + (1,) * (old.ndim - 1)), new, old)
+
+
+def _current_obs(spec: TaskSpec, frame: Frame) -> Array:
+    """The 18-value frame: hand position, gripper opening, then objects (pos + quat, padded)."""
+    pos, quat = spec.objects(frame)
+    objects = jnp.concatenate([pos, quat], axis=-1).reshape(-1)
+    objects = jnp.pad(objects, (0, _OBJECT_OBS - objects.shape[0]))
+    return jnp.concatenate([frame.hand_pos, frame.gripper_distance[None], objects]).astype(jnp.float32)
+
+
+def _merge_constants(parts: list[dict[str, Array]], sizes: list[int]) -> dict[str, Array]:
+    """Per-task constant dicts -> one dict over the batch, zeros where a task has no such key."""
+    shapes: dict[str, tuple[int, ...]] = {}
+    for part in parts:
+        for key, value in part.items():
+            shapes.setdefault(key, value.shape[1:])
+    merged = {}
+    for key, shape in shapes.items():
+        merged[key] = jnp.concatenate(
+            [
+                part[key].astype(jnp.float32) if key in part else jnp.zeros((n, *shape), jnp.float32)
+                for part, n in zip(parts, sizes)
+            ]
+        )
+    return merged
+
+
+def make(
+    tasks: str | Sequence[str],
+    envs_per_task: int = 1,
+    seed: int = 0,
+    reward_version: str = "v2",
+    **kwargs: Any,
+) -> Env:
+    """`mwjax.make("MT10", envs_per_task=256, seed=42)`: a batched task set (see `Env`)."""
+    return Env(tasks, envs_per_task=envs_per_task, seed=seed, reward_version=reward_version, **kwargs)

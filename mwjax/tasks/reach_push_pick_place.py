@@ -1,0 +1,49 @@
+"""reach, push and pick-place: a puck on the table and a goal in space."""
+
+from __future__ import annotations
+
+import jax.numpy as jnp
+import numpy as np
+
+from mwjax import rewards_v2
+from mwjax.tasks.spec import Frame, Placement, TaskSpec, quat_from_xmat, set_object_xyz
+
+HAND_LOW, HAND_HIGH = (-0.5, 0.40, 0.05), (0.5, 1.0, 0.5)
+
+
+def _puck(frame: Frame) -> tuple[jnp.ndarray, jnp.ndarray]:
+    return frame.body_pos("obj")[None], quat_from_xmat(frame.geom_xmat("objGeom"))[None]
+
+
+def _goal_apart(vec: np.ndarray) -> bool:
+    """The reference redraws until object and goal are at least 15 cm apart in the plane."""
+    return bool(np.linalg.norm(vec[:2] - vec[3:5]) >= 0.15)
+
+
+def _place_pick_place(rand_vec: jnp.ndarray, settled: Frame) -> Placement:
+    qpos, qvel = set_object_xyz(settled, rand_vec[:3])
+    return Placement(qpos=qpos, qvel=qvel, target_pos=rand_vec[3:])
+
+
+def _puck_constants(frame: Frame, placement: Placement, settled: Frame) -> dict[str, jnp.ndarray]:
+    return {"obj_init_pos": placement.qpos[9:12], "init_tcp": settled.tcp_center}
+
+
+PICK_PLACE = TaskSpec(
+    name="pick-place-v3",
+    scene="sawyer_pick_place_v3.xml",
+    hand_init_pos=(0.0, 0.6, 0.2),
+    hand_low=HAND_LOW,
+    hand_high=HAND_HIGH,
+    random_low=(-0.1, 0.6, 0.02, -0.1, 0.8, 0.05),
+    random_high=(0.1, 0.7, 0.02, 0.1, 0.9, 0.3),
+    goal_low=(-0.1, 0.8, 0.05),
+    goal_high=(0.1, 0.9, 0.3),
+    place=_place_pick_place,
+    constants=_puck_constants,
+    objects=_puck,
+    reward_v2=rewards_v2.pick_place,
+    rand_vec_valid=_goal_apart,
+)
+
+TASKS = (PICK_PLACE,)

@@ -1,0 +1,213 @@
+"""The declarative description of a task, and the read-only views task code sees.
+
+A task is data plus four small pure functions of one env (they are vmapped by the core):
+
+- `place(rand_vec, settled) -> Placement`: where the reset puts objects, fixed bodies and the goal,
+  given the goal variant `rand_vec` and the settled hand state (`Frame` of the data as the
+  reference reads it right after `_reset_hand`).
+- `constants(frame, placement, settled) -> dict`: per-episode constants the reward reads, computed
+  from the kinematics of the placed scene (e.g. the handle position after moving a door).
+- `objects(frame) -> (pos (k, 3), quat (k, 4))`: the object part of the observation.
+- `reward_v2(step) -> (reward, info)`: V2 reward and its info terms, `info["success"]` included.
+
+The core knows nothing else about a task.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable, Mapping
+from typing import Any, NamedTuple
+
+import jax
+import jax.numpy as jnp
+import mujoco
+import numpy as np
+
+Array = jax.Array
+
+
+class Kinematics(NamedTuple):
+    """The part of one env's physics state that task code reads (batched or not)."""
+
+    qpos: Any
+    qvel: Any
+    xpos: Any
+    xquat: Any
+    site_xpos: Any
+    site_xmat: Any
+    geom_xpos: Any
+    geom_xmat: Any
+
+    @classmethod
+    def of(cls, data: Any) -> Kinematics:
+        return cls(*(getattr(data, field) for field in cls._fields))
+
+    def rows(self, start: int, stop: int) -> Kinematics:
+        return Kinematics(*(x[start:stop] for x in self))
+
+
+class Frame:
+    """Named, read-only access to one env's kinematics (mjx.Data or recorded numpy arrays).
+
+    Positions are as MuJoCo computes them; `body_pos` is the body frame origin (`xpos`, what
+    metaworld's `get_body_com` returns).
+    """
+
+    def __init__(self, model: mujoco.MjModel, data: Any) -> None:
+        self._model = model
+        self._data = data
+
+    @property
+    def qpos(self) -> Array:
+        return self._data.qpos
+
+    @property
+    def qvel(self) -> Array:
+        return self._data.qvel
+
+    def body_pos(self, name: str) -> Array:
+        return self._data.xpos[self._model.body(name).id]
+
+    def body_quat(self, name: str) -> Array:
+        return self._data.xquat[self._model.body(name).id]
+
+    def site_pos(self, name: str) -> Array:
+        return self._data.site_xpos[self._model.site(name).id]
+
+    def site_xmat(self, name: str) -> Array:
+        return self._data.site_xmat[self._model.site(name).id].reshape(3, 3)
+
+    def geom_pos(self, name: str) -> Array:
+        return self._data.geom_xpos[self._model.geom(name).id]
+
+    def geom_xmat(self, name: str) -> Array:
+        return self._data.geom_xmat[self._model.geom(name).id].reshape(3, 3)
+
+    def joint_qpos(self, name: str) -> Array:
+        return self._data.qpos[self._model.joint(name).qposadr[0]]
+
+    def joint_qposadr(self, name: str) -> int:
+        return int(self._model.joint(name).qposadr[0])
+
+    def joint_dofadr(self, name: str) -> int:
+        return int(self._model.joint(name).dofadr[0])
+
+    # The gripper vocabulary every Sawyer task shares.
+    @property
+    def hand_pos(self) -> Array:
+        return self.body_pos("hand")
+
+    @property
+    def tcp_center(self) -> Array:
+        return (self.site_pos("rightEndEffector") + self.site_pos("leftEndEffector")) / 2.0
+
+    @property
+    def left_pad(self) -> Array:
+        return self.body_pos("leftpad")
+
+    @property
+    def right_pad(self) -> Array:
+        return self.body_pos("rightpad")
+
+    @property
+    def gripper_distance(self) -> Array:
+        """Finger separation normalised to [0, 1] (fingers open ~0.1 m apart)."""
+        gap = jnp.linalg.norm(self.body_pos("rightclaw") - self.body_pos("leftclaw"))
+        return jnp.clip(gap / 0.1, 0.0, 1.0)
+
+
+@jax.tree_util.register_dataclass
+@dataclasses.dataclass(frozen=True)
+class Placement:
+    """What `place` decides at reset, for one env."""
+
+    qpos: Array
+    qvel: Array
+    target_pos: Array
+    moved_bodies: Mapping[str, Array] = dataclasses.field(default_factory=dict)
+
+
+@dataclasses.dataclass(frozen=True)
+class StepInputs:
+    """Everything a reward kernel may read after a step, for one env."""
+
+    frame: Frame
+    obs: Array
+    action: Array
+    target_pos: Array
+    constants: Mapping[str, Array]
+
+
+PlaceFn = Callable[[Array, Frame], Placement]
+ConstantsFn = Callable[[Frame, Placement, Frame], dict[str, Array]]
+ObjectsFn = Callable[[Frame], tuple[Array, Array]]
+RewardFn = Callable[[StepInputs], tuple[Array, dict[str, Array]]]
+
+
+def _no_constants(frame: Frame, placement: Placement, settled: Frame) -> dict[str, Array]:
+    return {}
+
+
+@dataclasses.dataclass(frozen=True)
+class TaskSpec:
+    """One Meta-World task. Bounds are the reference's, in metres."""
+
+    name: str
+    scene: str
+    hand_init_pos: tuple[float, float, float]
+    hand_low: tuple[float, float, float]
+    hand_high: tuple[float, float, float]
+    random_low: tuple[float, ...]
+    random_high: tuple[float, ...]
+    goal_low: tuple[float, float, float]
+    goal_high: tuple[float, float, float]
+    place: PlaceFn
+    objects: ObjectsFn
+    reward_v2: RewardFn
+    constants: ConstantsFn = _no_constants
+    mocap_low: tuple[float, float, float] | None = None
+    mocap_high: tuple[float, float, float] | None = None
+    moved_bodies: tuple[str, ...] = ()
+    # The reference redraws rand_vec inside reset_model until this holds (numpy, host side).
+    rand_vec_valid: Callable[[np.ndarray], bool] = lambda vec: True
+
+    @property
+    def mocap_bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        low = self.hand_low if self.mocap_low is None else self.mocap_low
+        high = self.hand_high if self.mocap_high is None else self.mocap_high
+        return np.asarray(low, np.float32), np.asarray(high, np.float32)
+
+
+def set_object_xyz(settled: Frame, pos: Array, qpos_adr: int = 9, qvel_adr: int = 9) -> tuple[Array, Array]:
+    """metaworld's `_set_obj_xyz` for a free joint: position set, its 6 velocities zeroed."""
+    qpos = settled.qpos.at[qpos_adr : qpos_adr + 3].set(pos)
+    qvel = settled.qvel.at[qvel_adr : qvel_adr + 6].set(0.0)
+    return qpos, qvel
+
+
+def quat_from_xmat(mat: Array) -> Array:
+    """scipy's `Rotation.from_matrix(mat).as_quat()` (x, y, z, w), with scipy's sign choice.
+
+    Several reference tasks report object orientation this way instead of MuJoCo's (w, x, y, z)
+    `xquat`; the sign and component order must match for the observation to match.
+    """
+    diag = jnp.diagonal(mat)
+    trace = jnp.sum(diag)
+    decision = jnp.concatenate([diag, trace[None]])
+    choice = jnp.argmax(decision)
+
+    def from_diagonal(i: int) -> Array:
+        j, k = (i + 1) % 3, (i + 2) % 3
+        q = jnp.zeros(4, mat.dtype)
+        q = q.at[i].set(1.0 - trace + 2.0 * mat[i, i])
+        q = q.at[j].set(mat[j, i] + mat[i, j])
+        q = q.at[k].set(mat[k, i] + mat[i, k])
+        return q.at[3].set(mat[k, j] - mat[j, k])
+
+    from_trace = jnp.stack(
+        [mat[2, 1] - mat[1, 2], mat[0, 2] - mat[2, 0], mat[1, 0] - mat[0, 1], 1.0 + trace]
+    )
+    candidates = jnp.stack([from_diagonal(0), from_diagonal(1), from_diagonal(2), from_trace])
+    q = candidates[choice]
+    return q / jnp.linalg.norm(q)

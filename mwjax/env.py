@@ -268,7 +268,8 @@ class Env:
 
             curr, constants = jax.vmap(one)(frames, placement)
             curr_parts.append(curr)
-            target_parts.append(placement.target_pos)
+            # A goal read off the placed scene (e.g. a site on a moved fixture) overrides `place`'s.
+            target_parts.append(constants.pop("target_pos", placement.target_pos))
             constant_parts.append(constants)
         curr = jnp.concatenate(curr_parts)
         target = jnp.concatenate(target_parts).astype(jnp.float32)

@@ -218,3 +218,15 @@ def pick_place(step: StepInputs) -> tuple[Array, dict[str, Array]]:
         in_place_reward=in_place,
         obj_to_target=obj_to_target,
     )
+
+
+# ---- reach, push (reach_push_pick_place.py) ---------------------------------------------------
+
+
+# ---- peg-insert-side (peg.py) ----------------------------------------------------------------
+
+
+# ---- door, drawer (articulated.py) -----------------------------------------------------------
+
+
+# ---- button-press-topdown, window (articulated.py) -------------------------------------------

@@ -2,12 +2,12 @@
 
 from __future__ import annotations
 
-from mwjax.tasks import reach_push_pick_place
+from mwjax.tasks import articulated, peg, reach_push_pick_place
 from mwjax.tasks.spec import TaskSpec
 
 TASKS: dict[str, TaskSpec] = {
     spec.name: spec
-    for family in (reach_push_pick_place,)
+    for family in (reach_push_pick_place, articulated, peg)
     for spec in family.TASKS
 }
 

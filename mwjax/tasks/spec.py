@@ -6,7 +6,8 @@ A task is data plus four small pure functions of one env (they are vmapped by th
   given the goal variant `rand_vec` and the settled hand state (`Frame` of the data as the
   reference reads it right after `_reset_hand`).
 - `constants(frame, placement, settled) -> dict`: per-episode constants the reward reads, computed
-  from the kinematics of the placed scene (e.g. the handle position after moving a door).
+  from the kinematics of the placed scene (e.g. the handle position after moving a door). A
+  `"target_pos"` entry replaces `placement.target_pos` (for goals read off the placed scene).
 - `objects(frame) -> (pos (k, 3), quat (k, 4))`: the object part of the observation.
 - `reward_v2(step) -> (reward, info)`: V2 reward and its info terms, `info["success"]` included.
 

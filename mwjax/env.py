@@ -174,6 +174,19 @@ class Env:
         keys = jax.random.split(jax.random.key(0) if key is None else key, self.num_envs)
         return self._reset_rows(self.physics.make_data(), rand_vecs, keys, jnp.ones(self.num_envs, bool))
 
+    def task_rows(self, task: str) -> slice:
+        """The rows of `task` in the env batch."""
+        for rows in self._rows:
+            if rows.spec.name == task:
+                return slice(rows.start, rows.start + rows.size)
+        raise ValueError(f"{task!r} is not in this env's tasks {self.task_list}")
+
+    def kinematics(self, state: State, task: str) -> Kinematics:
+        """qpos, qvel and the body/site/geom poses of `task`'s rows (its scene's ids)."""
+        self.task_rows(task)
+        rows = next(r for r in self._rows if r.spec.name == task)
+        return Kinematics.of(state.physics[rows.group]).rows(rows.local_start, rows.local_start + rows.size)
+
     def with_physics_state(
         self, state: State, qpos: Array, qvel: Array, hand_mocap_pos: Array, hand_mocap_quat: Array
     ) -> State:

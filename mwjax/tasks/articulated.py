@@ -2,6 +2,256 @@
 
 from __future__ import annotations
 
-from mwjax.tasks.spec import TaskSpec
+from collections.abc import Sequence
 
-TASKS: tuple[TaskSpec, ...] = ()
+import jax.numpy as jnp
+
+from mwjax import rewards_v2
+from mwjax.tasks.spec import Frame, Placement, PlaceFn, TaskSpec, quat_from_xmat
+
+HAND_LOW, HAND_HIGH = (-0.5, 0.40, 0.05), (0.5, 1.0, 0.5)
+HAND_INIT = (0.0, 0.6, 0.2)
+
+
+def place_fixture(
+    body: str,
+    goal_offset: Sequence[float],
+    joint: str | None = None,
+    joint_pos: float = 0.0,
+    zero_joint_qvel: bool = False,
+) -> PlaceFn:
+    """The shared reset of a fixture task: `model.body(body).pos = rand_vec`, goal at
+    `rand_vec + goal_offset`, and optionally one joint's qpos written (its qvel zeroed only when
+    the reference's `_set_obj_xyz` does so). Everything else stays as `_reset_hand` left it."""
+
+    def place(rand_vec: jnp.ndarray, settled: Frame) -> Placement:
+        qpos, qvel = settled.qpos, settled.qvel
+        if joint is not None:
+            qpos = qpos.at[settled.joint_qposadr(joint)].set(joint_pos)
+            if zero_joint_qvel:
+                qvel = qvel.at[settled.joint_dofadr(joint)].set(0.0)
+        return Placement(
+            qpos=qpos,
+            qvel=qvel,
+            target_pos=rand_vec[:3] + jnp.asarray(goal_offset, rand_vec.dtype),
+            moved_bodies={body: rand_vec[:3]},
+        )
+
+    return place
+
+
+# ---- door-open, drawer-open, drawer-close ------------------------------------------------------
+
+# The drawer's handle relative to the `drawer_link` body origin, as each task reports it.
+_DRAWER_OPEN_HANDLE = (0.0, -0.16, 0.0)
+# drawer-close reports a point 5 cm higher than drawer-open does (its goal z stays at +0.09).
+_DRAWER_CLOSE_HANDLE = (0.0, -0.16, 0.05)
+# Both drawer tasks move the same body of the shared scene, so they list the same moved bodies.
+_DRAWER_MOVED = ("drawer",)
+
+
+def _door_handle(frame: Frame) -> tuple[jnp.ndarray, jnp.ndarray]:
+    # scipy's as_quat of the handle geom's rotation: (x, y, z, w).
+    return frame.geom_pos("handle")[None], quat_from_xmat(frame.geom_xmat("handle"))[None]
+
+
+def _drawer_open_handle(frame: Frame) -> tuple[jnp.ndarray, jnp.ndarray]:
+    # MuJoCo's xquat of drawer_link: (w, x, y, z), unlike the door's scipy quaternion.
+    pos = frame.body_pos("drawer_link") + jnp.asarray(_DRAWER_OPEN_HANDLE)
+    return pos[None], frame.body_quat("drawer_link")[None]
+
+
+def _drawer_close_handle(frame: Frame) -> tuple[jnp.ndarray, jnp.ndarray]:
+    # Reference quirk: drawer-close reports an all-zero quaternion for the drawer.
+    pos = frame.body_pos("drawer_link") + jnp.asarray(_DRAWER_CLOSE_HANDLE)
+    return pos[None], jnp.zeros((1, 4), pos.dtype)
+
+
+def _init_tcp(frame: Frame, placement: Placement, settled: Frame) -> dict[str, jnp.ndarray]:
+    # init_tcp is taken at the end of _reset_hand, before the fixture moves.
+    return {"init_tcp": settled.tcp_center}
+
+
+def _drawer_close_constants(frame: Frame, placement: Placement, settled: Frame) -> dict[str, jnp.ndarray]:
+    # obj_init_pos = _get_pos_objects() after set_state (mj_forward): the pulled-out handle.
+    return {
+        "obj_init_pos": _drawer_close_handle(frame)[0][0],
+        "init_tcp": settled.tcp_center,
+    }
+
+
+DOOR_OPEN = TaskSpec(
+    name="door-open-v3",
+    scene="sawyer_door_pull.xml",
+    hand_init_pos=HAND_INIT,
+    hand_low=HAND_LOW,
+    hand_high=HAND_HIGH,
+    random_low=(0.0, 0.85, 0.15),
+    random_high=(0.1, 0.95, 0.15),
+    goal_low=(-0.3, 0.4, 0.1499),
+    goal_high=(-0.2, 0.5, 0.1501),
+    # _set_obj_xyz(0): door hinge closed and its velocity zeroed.
+    place=place_fixture("door", (-0.3, -0.45, 0.0), joint="doorjoint", joint_pos=0.0, zero_joint_qvel=True),
+    objects=_door_handle,
+    reward_v2=rewards_v2.door_open,
+    moved_bodies=("door",),
+)
+
+DRAWER_OPEN = TaskSpec(
+    name="drawer-open-v3",
+    scene="sawyer_drawer.xml",
+    hand_init_pos=HAND_INIT,
+    hand_low=HAND_LOW,
+    hand_high=HAND_HIGH,
+    random_low=(-0.1, 0.9, 0.0),
+    random_high=(0.1, 0.9, 0.0),
+    # Reference: goal_space = hand bounds.
+    goal_low=HAND_LOW,
+    goal_high=HAND_HIGH,
+    # No joint write: the drawer slide keeps its settled qpos (target = closed handle - maxDist 0.2).
+    place=place_fixture("drawer", (0.0, -0.16 - 0.2, 0.09)),
+    constants=_init_tcp,
+    objects=_drawer_open_handle,
+    reward_v2=rewards_v2.drawer_open,
+    moved_bodies=_DRAWER_MOVED,
+)
+
+DRAWER_CLOSE = TaskSpec(
+    name="drawer-close-v3",
+    scene="sawyer_drawer.xml",
+    hand_init_pos=HAND_INIT,
+    hand_low=HAND_LOW,
+    hand_high=HAND_HIGH,
+    random_low=(-0.1, 0.9, 0.0),
+    random_high=(0.1, 0.9, 0.0),
+    goal_low=HAND_LOW,
+    goal_high=HAND_HIGH,
+    # Reference quirk: its _set_obj_xyz(-maxDist) writes qpos[9] only and keeps the drawer's qvel.
+    place=place_fixture("drawer", (0.0, -0.16, 0.09), joint="goal_slidey", joint_pos=-0.15),
+    constants=_drawer_close_constants,
+    objects=_drawer_close_handle,
+    reward_v2=rewards_v2.drawer_close,
+    moved_bodies=_DRAWER_MOVED,
+)
+
+_DOOR_DRAWER_TASKS = (DOOR_OPEN, DRAWER_OPEN, DRAWER_CLOSE)
+
+# ---- button-press-topdown, window ---------------------------------------------------------------
+
+# These three tasks start the hand at y = 0.4 (the door/drawer tasks use 0.6).
+_HAND_INIT_NEAR = (0.0, 0.4, 0.2)
+# window-open and window-close share their scene, so they list the same moved bodies.
+_WINDOW_MOVED = ("window",)
+
+
+def _button_topdown(frame: Frame) -> tuple[jnp.ndarray, jnp.ndarray]:
+    # The button body origin raised by 0.193 (the button top), with MuJoCo's xquat (w, x, y, z).
+    pos = frame.body_pos("button") + jnp.asarray((0.0, 0.0, 0.193))
+    return pos[None], frame.body_quat("button")[None]
+
+
+def _button_topdown_constants(frame: Frame, placement: Placement, settled: Frame) -> dict[str, jnp.ndarray]:
+    # Read after mj_forward on the moved box: the goal is the site "hole", not rand_vec.
+    target = frame.site_pos("hole")
+    return {
+        "target_pos": target,
+        "init_tcp": settled.tcp_center,
+        "obj_to_target_init": jnp.abs(target[2] - frame.site_pos("buttonStart")[2]),
+    }
+
+
+def _stale_window_site(frame: Frame, settled: Frame, site: str) -> jnp.ndarray:
+    """A window site as reset_model reads it, before any mj_forward: kinematics are those of
+    `_reset_hand`, where the window body already sits at this episode's position (the first of the
+    two reset_model calls per reset moved it) and the slide joint is in its settled state."""
+    return frame.body_pos("window") + (settled.site_pos(site) - settled.body_pos("window"))
+
+
+def _window_open_handle(frame: Frame) -> tuple[jnp.ndarray, jnp.ndarray]:
+    # Reference: _get_quat_objects is np.zeros(4).
+    pos = frame.site_pos("handleOpenStart")
+    return pos[None], jnp.zeros((1, 4), pos.dtype)
+
+
+def _window_close_handle(frame: Frame) -> tuple[jnp.ndarray, jnp.ndarray]:
+    pos = frame.site_pos("handleCloseStart")
+    return pos[None], jnp.zeros((1, 4), pos.dtype)
+
+
+def _window_open_constants(frame: Frame, placement: Placement, settled: Frame) -> dict[str, jnp.ndarray]:
+    return {
+        "obj_init_pos": placement.moved_bodies["window"],  # rand_vec: the window body position
+        "init_tcp": settled.tcp_center,
+        "window_handle_pos_init": _stale_window_site(frame, settled, "handleOpenStart"),
+    }
+
+
+def _window_close_constants(frame: Frame, placement: Placement, settled: Frame) -> dict[str, jnp.ndarray]:
+    # Quirk: read before the slide is set to 0.2 (stale, slide settled at 0), then shifted +0.2 in
+    # x by hand, which lands on the handle of the opened window the reset actually places.
+    handle = _stale_window_site(frame, settled, "handleCloseStart") + jnp.asarray((0.2, 0.0, 0.0))
+    return {
+        "obj_init_pos": placement.moved_bodies["window"],
+        "init_tcp": settled.tcp_center,
+        "window_handle_pos_init": handle,
+    }
+
+
+BUTTON_PRESS_TOPDOWN = TaskSpec(
+    name="button-press-topdown-v3",
+    scene="sawyer_button_press_topdown.xml",
+    hand_init_pos=_HAND_INIT_NEAR,
+    hand_low=HAND_LOW,
+    hand_high=HAND_HIGH,
+    random_low=(-0.1, 0.8, 0.115),
+    random_high=(0.1, 0.9, 0.115),
+    goal_low=HAND_LOW,
+    goal_high=HAND_HIGH,
+    # Only the box moves; the button keeps its settled joint state. The goal placed here is
+    # replaced by the "hole" site in constants.
+    place=place_fixture("box", (0.0, 0.0, 0.0)),
+    constants=_button_topdown_constants,
+    objects=_button_topdown,
+    reward_v2=rewards_v2.button_press_topdown,
+    moved_bodies=("box",),
+)
+
+WINDOW_OPEN = TaskSpec(
+    name="window-open-v3",
+    scene="sawyer_window_horizontal.xml",
+    hand_init_pos=_HAND_INIT_NEAR,
+    hand_low=HAND_LOW,
+    hand_high=HAND_HIGH,
+    random_low=(-0.1, 0.7, 0.16),
+    random_high=(0.1, 0.9, 0.16),
+    goal_low=HAND_LOW,
+    goal_high=HAND_HIGH,
+    # data.joint("window_slide").qpos = 0 is a bare write: the slide's qvel is kept.
+    place=place_fixture("window", (0.2, 0.0, 0.0), joint="window_slide", joint_pos=0.0),
+    constants=_window_open_constants,
+    objects=_window_open_handle,
+    reward_v2=rewards_v2.window_open,
+    moved_bodies=_WINDOW_MOVED,
+)
+
+WINDOW_CLOSE = TaskSpec(
+    name="window-close-v3",
+    scene="sawyer_window_horizontal.xml",
+    hand_init_pos=_HAND_INIT_NEAR,
+    hand_low=HAND_LOW,
+    hand_high=HAND_HIGH,
+    random_low=(0.0, 0.75, 0.2),
+    random_high=(0.0, 0.9, 0.2),
+    goal_low=HAND_LOW,
+    goal_high=HAND_HIGH,
+    # The window starts open (slide 0.2, bare qpos write); the goal is rand_vec itself.
+    place=place_fixture("window", (0.0, 0.0, 0.0), joint="window_slide", joint_pos=0.2),
+    constants=_window_close_constants,
+    objects=_window_close_handle,
+    reward_v2=rewards_v2.window_close,
+    moved_bodies=_WINDOW_MOVED,
+)
+
+_BUTTON_WINDOW_TASKS = (BUTTON_PRESS_TOPDOWN, WINDOW_OPEN, WINDOW_CLOSE)
+
+TASKS: tuple[TaskSpec, ...] = (*_DOOR_DRAWER_TASKS, *_BUTTON_WINDOW_TASKS)

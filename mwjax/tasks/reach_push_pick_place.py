@@ -29,6 +29,61 @@ def _puck_constants(frame: Frame, placement: Placement, settled: Frame) -> dict[
     return {"obj_init_pos": placement.qpos[9:12], "init_tcp": settled.tcp_center}
 
 
+def _place_reach(rand_vec: jnp.ndarray, settled: Frame) -> Placement:
+    # The puck is placed at rand_vec[:3] although reach never uses it; the goal is rand_vec[3:].
+    qpos, qvel = set_object_xyz(settled, rand_vec[:3])
+    return Placement(qpos=qpos, qvel=qvel, target_pos=rand_vec[3:])
+
+
+def _reach_constants(frame: Frame, placement: Placement, settled: Frame) -> dict[str, jnp.ndarray]:
+    # The V2 in-place margin is measured from hand_init_pos (not init_tcp).
+    return {"hand_init_pos": jnp.asarray(REACH.hand_init_pos, jnp.float32)}
+
+
+def _place_push(rand_vec: jnp.ndarray, settled: Frame) -> Placement:
+    # Quirk: both heights are `fix_extreme_obj_pos`'s z, the puck body z of the settled
+    # (pre-placement, one substep stale) state; rand_vec's object and goal z are ignored.
+    puck_z = settled.body_pos("obj")[2]
+    obj_init_pos = jnp.concatenate([rand_vec[:2], puck_z[None]])
+    qpos, qvel = set_object_xyz(settled, obj_init_pos)
+    return Placement(qpos=qpos, qvel=qvel, target_pos=jnp.concatenate([rand_vec[3:5], puck_z[None]]))
+
+
+REACH = TaskSpec(
+    name="reach-v3",
+    scene="sawyer_reach_v3.xml",
+    hand_init_pos=(0.0, 0.6, 0.2),
+    hand_low=HAND_LOW,
+    hand_high=HAND_HIGH,
+    random_low=(-0.1, 0.6, 0.02, -0.1, 0.8, 0.05),
+    random_high=(0.1, 0.7, 0.02, 0.1, 0.9, 0.3),
+    goal_low=(-0.1, 0.8, 0.05),
+    goal_high=(0.1, 0.9, 0.3),
+    place=_place_reach,
+    constants=_reach_constants,
+    objects=_puck,
+    reward_v2=rewards_v2.reach,
+    rand_vec_valid=_goal_apart,
+)
+
+PUSH = TaskSpec(
+    name="push-v3",
+    scene="sawyer_push_v3.xml",
+    hand_init_pos=(0.0, 0.6, 0.2),
+    hand_low=HAND_LOW,
+    hand_high=HAND_HIGH,
+    random_low=(-0.1, 0.6, 0.02, -0.1, 0.8, 0.01),
+    random_high=(0.1, 0.7, 0.02, 0.1, 0.9, 0.02),
+    goal_low=(-0.1, 0.8, 0.01),
+    goal_high=(0.1, 0.9, 0.02),
+    place=_place_push,
+    constants=_puck_constants,
+    objects=_puck,
+    reward_v2=rewards_v2.push,
+    rand_vec_valid=_goal_apart,
+)
+
+
 PICK_PLACE = TaskSpec(
     name="pick-place-v3",
     scene="sawyer_pick_place_v3.xml",
@@ -46,4 +101,4 @@ PICK_PLACE = TaskSpec(
     rand_vec_valid=_goal_apart,
 )
 
-TASKS = (PICK_PLACE,)
+TASKS = (REACH, PUSH, PICK_PLACE)

@@ -1,0 +1,154 @@
+"""Env steps per second of mwjax (physics, observations, V2 rewards and autoreset included).
+
+Each measurement builds a task set at a total batch size, compiles a jitted `lax.scan` rollout
+with random actions drawn on device, runs it once to warm up, then times `--repeats` rollouts of
+`--steps` env steps (500 by default, so every env autoresets once per rollout). Results are
+printed as a table and written to `benchmarks/results/` with device, commit and date.
+
+    python benchmarks/throughput.py --sets MT1:pick-place-v3 MT10 --batch 4096 16384 65536
+
+On a GPU set XLA_PYTHON_CLIENT_MEM_FRACTION (~0.45) so JAX leaves Warp room.
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime
+import json
+import os
+import platform
+import subprocess
+import time
+from pathlib import Path
+
+import jax
+import jax.numpy as jnp
+
+import mwjax
+from mwjax.benchmarks import task_names
+
+RESULTS = Path(__file__).parent / "results"
+
+
+def gpu_memory_used_mib() -> float | None:
+    try:
+        out = subprocess.run(
+            ["nvidia-smi", "--query-gpu=memory.used", "--format=csv,noheader,nounits"],
+            capture_output=True, text=True, check=True,
+        ).stdout
+        return float(out.split()[0])
+    except (OSError, subprocess.CalledProcessError, ValueError, IndexError):
+        return None
+
+
+def commit() -> str:
+    if os.environ.get("MWJAX_COMMIT"):
+        return os.environ["MWJAX_COMMIT"]
+    try:
+        return subprocess.run(["git", "rev-parse", "HEAD"], capture_output=True, text=True, check=True).stdout.strip()
+    except (OSError, subprocess.CalledProcessError):
+        return "unknown"
+
+
+def measure(benchmark: str, total: int, steps: int, repeats: int, physics: mwjax.PhysicsConfig) -> dict:
+    n_tasks = len(task_names(benchmark))
+    if total % n_tasks:
+        raise ValueError(f"batch {total} is not divisible by the {n_tasks} tasks of {benchmark}")
+    memory_before = gpu_memory_used_mib()
+    t0 = time.perf_counter()
+    env = mwjax.make(benchmark, envs_per_task=total // n_tasks, seed=0, physics=physics)
+    build_s = time.perf_counter() - t0
+
+    def rollout(state: mwjax.State, key: jax.Array) -> tuple[mwjax.State, jax.Array]:
+        def body(carry: tuple[mwjax.State, jax.Array], key: jax.Array) -> tuple:
+            state, successes = carry
+            action = jax.random.uniform(key, (env.num_envs, 4), minval=-1.0, maxval=1.0)
+            state = env.step(state, action)
+            return (state, successes + state.info["success"].sum()), None
+
+        (state, successes), _ = jax.lax.scan(body, (state, jnp.zeros((), jnp.int32)), jax.random.split(key, steps))
+        return state, successes
+
+    reset = jax.jit(env.reset)
+    run = jax.jit(rollout, donate_argnums=0)
+    t0 = time.perf_counter()
+    state = jax.block_until_ready(reset(jax.random.key(0)))
+    reset_compile_s = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    compiled = run.lower(state, jax.random.key(1)).compile()
+    compile_s = time.perf_counter() - t0
+    state, _ = jax.block_until_ready(compiled(state, jax.random.key(1)))  # warm-up
+    times = []
+    for i in range(repeats):
+        t0 = time.perf_counter()
+        state, successes = jax.block_until_ready(compiled(state, jax.random.key(2 + i)))
+        times.append(time.perf_counter() - t0)
+    best = min(times)
+    memory_after = gpu_memory_used_mib()
+    return {
+        "benchmark": benchmark,
+        "num_envs": env.num_envs,
+        "steps_per_rollout": steps,
+        "env_steps_per_s": env.num_envs * steps / best,
+        "rollout_s": times,
+        "build_s": build_s,
+        "reset_compile_s": reset_compile_s,
+        "step_compile_s": compile_s,
+        "gpu_memory_used_mib": memory_after,
+        "gpu_memory_mib_per_1k_envs": (
+            None if memory_after is None or memory_before is None
+            else (memory_after - memory_before) / env.num_envs * 1000
+        ),
+        "success_steps_last_rollout": int(successes),
+    }
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--sets", nargs="+", default=["MT1:pick-place-v3", "MT10"])
+    parser.add_argument("--batch", nargs="+", type=int, default=[1000, 4000])
+    parser.add_argument("--steps", type=int, default=500)
+    parser.add_argument("--repeats", type=int, default=2)
+    parser.add_argument("--physics", choices=["default", "fast"], default="default")
+    parser.add_argument("--out", default=None, help="JSON path (default: benchmarks/results/...)")
+    args = parser.parse_args()
+    physics = mwjax.PhysicsConfig() if args.physics == "default" else mwjax.PhysicsConfig.fast()
+
+    device = jax.devices()[0]
+    rows = []
+    for benchmark in args.sets:
+        for total in args.batch:
+            n_tasks = len(task_names(benchmark))
+            total = total - total % n_tasks
+            row = measure(benchmark, total, args.steps, args.repeats, physics)
+            rows.append(row)
+            print(
+                f"{benchmark:>20} {row['num_envs']:>7} envs  {row['env_steps_per_s']:>12,.0f} env steps/s  "
+                f"compile {row['step_compile_s']:.0f}s  mem {row['gpu_memory_used_mib']} MiB",
+                flush=True,
+            )
+    result = {
+        "device": getattr(device, "device_kind", str(device)),
+        "platform": device.platform,
+        "host": platform.node(),
+        "commit": commit(),
+        "date": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
+        "physics": args.physics,
+        "jax": jax.__version__,
+        "xla_mem_fraction": os.environ.get("XLA_PYTHON_CLIENT_MEM_FRACTION"),
+        "results": rows,
+    }
+    out = Path(args.out) if args.out else RESULTS / (
+        f"throughput-{result['device'].replace(' ', '_')}-{result['date'][:10]}.json"
+    )
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(json.dumps(result, indent=2))
+    print()
+    print(f"{'set':>20} {'envs':>7} {'env steps/s':>14} {'compile s':>10}")
+    for row in rows:
+        print(f"{row['benchmark']:>20} {row['num_envs']:>7} {row['env_steps_per_s']:>14,.0f} {row['step_compile_s']:>10.1f}")
+    print(f"device {result['device']}, commit {result['commit'][:10]}, {result['date']} -> {out}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,71 @@
+"""Loading the recorded reference fixtures (tools/record_reference.py) and replaying them in mwjax."""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import json
+from pathlib import Path
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+import mwjax
+
+FIXTURES = Path(__file__).parent / "fixtures" / "reference"
+
+
+@functools.lru_cache(maxsize=None)
+def load(task: str) -> dict:
+    with np.load(FIXTURES / f"{task}.npz") as archive:
+        arrays = {key: archive[key] for key in archive.files}
+    arrays["meta"] = json.loads(str(arrays["meta"]))
+    return arrays
+
+
+def shape(task: str) -> tuple[int, int]:
+    """(resets, steps) recorded for `task`."""
+    return load(task)["action"].shape[:2]
+
+
+def rand_vec_rows(env: mwjax.Env, repeat: int) -> np.ndarray:
+    """Each task's recorded goal variants, each repeated `repeat` times, in batch order."""
+    width = max(v.shape[1] for v in env.goal_variants.values())
+    vecs = [np.repeat(load(task)["rand_vec"], repeat, axis=0) for task in env.task_list]
+    return np.concatenate([np.pad(v, ((0, 0), (0, width - v.shape[1]))) for v in vecs])
+
+
+@dataclasses.dataclass(frozen=True)
+class Replay:
+    """mwjax's obs, reward and success on every recorded post-step state, per task, (R, T, ...)."""
+
+    obs: dict[str, np.ndarray]
+    reward: dict[str, np.ndarray]
+    success: dict[str, np.ndarray]
+
+
+def replay_recorded_states(tasks: list[str]) -> Replay:
+    """Loads each recorded post-step physics state into one batched env (one row per recorded
+    step), with the recorded previous observation as the stacked frame, and evaluates it."""
+    resets, steps = shape(tasks[0])
+    env = mwjax.make(tasks, envs_per_task=resets * steps)
+    order = env.task_list
+
+    def stacked(key: str) -> np.ndarray:
+        return np.concatenate([load(t)[key].reshape(resets * steps, *load(t)[key].shape[2:]) for t in order])
+
+    state = jax.jit(env.reset_to)(jnp.asarray(rand_vec_rows(env, steps)))
+    state = jax.jit(env.with_physics_state)(
+        state, stacked("qpos"), stacked("qvel"), stacked("mocap_pos")[:, 0], stacked("mocap_quat")[:, 0]
+    )
+    previous = [np.concatenate([load(t)["reset_obs"][:, None], load(t)["obs"][:, :-1]], axis=1) for t in order]
+    previous_obs = np.concatenate([p.reshape(resets * steps, -1) for p in previous])
+    state = dataclasses.replace(state, obs=jnp.asarray(previous_obs, jnp.float32))
+    state = jax.jit(env.observe)(state, jnp.asarray(stacked("action")))
+
+    def per_task(x: jax.Array) -> dict[str, np.ndarray]:
+        x = np.asarray(x)
+        return {t: x[env.task_rows(t)].reshape(resets, steps, *x.shape[1:]) for t in order}
+
+    return Replay(obs=per_task(state.obs), reward=per_task(state.reward), success=per_task(state.info["success"]))

@@ -1,0 +1,105 @@
+"""Parity with the reference (metaworld 3.1.1 on mujoco 3.3.0), from recorded fixtures.
+
+Given the same physics state, mwjax must produce the reference's observation (1e-5), V2 reward
+(1e-4 x max(1, |reference|) on >= 99% of recorded steps) and success flag. Reset states and goal
+variants are compared too, and free-running trajectories must stay close for 10 steps.
+"""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+from reference import load, rand_vec_rows, replay_recorded_states, shape
+
+import mwjax
+from mwjax.benchmarks import MT10, sample_goal_variants
+
+OBS_TOL = 1e-5
+REWARD_TOL = 1e-4
+REWARD_PASS_FRACTION = 0.99
+
+# The reference computes these tasks' reset observation before refreshing kinematics (no
+# mj_forward after moving the fixture), so its reset obs shows the hand one physics substep
+# (and window-close's handle one joint write) behind the state it returns. mwjax reports the
+# state it returns. Bound: the largest difference measured, rounded up.
+STALE_RESET_OBS = {"drawer-open-v3": 1e-3, "window-open-v3": 1e-3, "window-close-v3": 0.25}
+
+FREE_RUN_STEPS = 10
+# Warp's float32 solver vs the reference's float64 one, through 50 physics substeps.
+FREE_RUN_OBS_TOL = 5e-3
+
+
+@pytest.fixture(scope="module")
+def replay():
+    return replay_recorded_states(list(MT10))
+
+
+@pytest.fixture(scope="module")
+def free_run():
+    """mwjax's own trajectory from each recorded reset, driven by the recorded actions."""
+    resets = shape(MT10[0])[0]
+    env = mwjax.make(list(MT10), envs_per_task=resets)
+    state = jax.jit(env.reset_to)(jnp.asarray(rand_vec_rows(env, 1)))
+    reset_state = state
+    actions = np.concatenate([load(t)["action"][:, :FREE_RUN_STEPS] for t in env.task_list])
+    step = jax.jit(env.step)
+    obs = []
+    for t in range(FREE_RUN_STEPS):
+        state = step(state, jnp.asarray(actions[:, t]))
+        obs.append(np.asarray(state.obs))
+    obs = np.stack(obs, axis=1)
+    return env, reset_state, {t: obs[env.task_rows(t)] for t in env.task_list}
+
+
+@pytest.mark.parametrize("task", MT10)
+def test_goal_variants_equal_reference(task):
+    recorded = load(task)["rand_vec"]
+    ours = sample_goal_variants([task], seed=load(task)["meta"]["seed"])[task][: len(recorded)]
+    np.testing.assert_array_equal(ours, recorded)
+
+
+@pytest.mark.parametrize("task", MT10)
+def test_obs_given_state(task, replay):
+    err = np.abs(replay.obs[task] - load(task)["obs"])
+    assert err.max() < OBS_TOL, f"max obs error {err.max():.3g} at {np.unravel_index(err.argmax(), err.shape)}"
+
+
+@pytest.mark.parametrize("task", MT10)
+def test_reward_v2_given_state(task, replay):
+    ref = load(task)["reward_v2"]
+    ok = np.abs(replay.reward[task] - ref) <= REWARD_TOL * np.maximum(1.0, np.abs(ref))
+    bad = np.argwhere(~ok)
+    assert ok.mean() >= REWARD_PASS_FRACTION, (
+        f"{ok.mean():.2%} within tolerance; first misses (reset, step, ours, ref): "
+        + ", ".join(f"({r}, {t}, {replay.reward[task][r, t]:.6g}, {ref[r, t]:.6g})" for r, t in bad[:5])
+    )
+
+
+@pytest.mark.parametrize("task", MT10)
+def test_success_given_state(task, replay):
+    np.testing.assert_array_equal(replay.success[task], load(task)["success_v2"] > 0)
+
+
+@pytest.mark.parametrize("task", MT10)
+def test_reset_state(task, free_run):
+    env, state, _ = free_run
+    kin = env.kinematics(state, task)
+    np.testing.assert_allclose(np.asarray(kin.qpos), load(task)["reset_qpos"], atol=1e-6)
+    np.testing.assert_allclose(np.asarray(kin.qvel), load(task)["reset_qvel"], atol=1e-5, rtol=1e-6)
+
+
+@pytest.mark.parametrize("task", MT10)
+def test_reset_obs(task, free_run):
+    env, state, _ = free_run
+    err = np.abs(np.asarray(state.obs[env.task_rows(task)]) - load(task)["reset_obs"]).max()
+    assert err < STALE_RESET_OBS.get(task, OBS_TOL), f"reset obs error {err:.3g}"
+
+
+@pytest.mark.parametrize("task", MT10)
+def test_free_running_drift(task, free_run):
+    _, _, obs = free_run
+    drift = np.abs(obs[task] - load(task)["obs"][:, :FREE_RUN_STEPS]).max(axis=(0, 2))
+    print(f"{task}: obs drift per step {np.array2string(drift, precision=2)}")
+    assert drift.max() < FREE_RUN_OBS_TOL, f"drift {drift.max():.3g} after {drift.argmax() + 1} steps"

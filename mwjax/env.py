@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from importlib import resources
 from typing import Any
 
@@ -187,21 +187,21 @@ class Env:
         rows = next(r for r in self._rows if r.spec.name == task)
         return Kinematics.of(state.physics[rows.group]).rows(rows.local_start, rows.local_start + rows.size)
 
-    def with_physics_state(
-        self, state: State, qpos: Array, qvel: Array, hand_mocap_pos: Array, hand_mocap_quat: Array
-    ) -> State:
-        """`state` with every env's dynamic physics state replaced (e.g. by a recorded one);
-        kinematics are recomputed, observations and rewards are left for `observe`."""
-        datas = []
-        for group, data in zip(self.physics.groups, state.physics):
-            rows = slice(group.start, group.start + group.size)
-            datas.append(
-                data.replace(
-                    qpos=jnp.asarray(qpos[rows], jnp.float32),
-                    qvel=jnp.asarray(qvel[rows], jnp.float32),
-                    mocap_pos=data.mocap_pos.at[:, 0].set(jnp.asarray(hand_mocap_pos[rows], jnp.float32)),
-                    mocap_quat=data.mocap_quat.at[:, 0].set(jnp.asarray(hand_mocap_quat[rows], jnp.float32)),
-                )
+    def with_physics_state(self, state: State, physics: Mapping[str, Mapping[str, Array]]) -> State:
+        """`state` with the dynamic physics state of some tasks' rows replaced (e.g. by recorded
+        reference states): `{task: {"qpos", "qvel", "mocap_pos", "mocap_quat"}}`, the mocap
+        entries being the hand's. Kinematics are recomputed; use `observe` for obs and rewards."""
+        datas = list(state.physics)
+        for task, fields in physics.items():
+            self.task_rows(task)
+            rows = next(r for r in self._rows if r.spec.name == task)
+            local = slice(rows.local_start, rows.local_start + rows.size)
+            data = datas[rows.group]
+            datas[rows.group] = data.replace(
+                qpos=data.qpos.at[local].set(jnp.asarray(fields["qpos"], jnp.float32)),
+                qvel=data.qvel.at[local].set(jnp.asarray(fields["qvel"], jnp.float32)),
+                mocap_pos=data.mocap_pos.at[local, 0].set(jnp.asarray(fields["mocap_pos"], jnp.float32)),
+                mocap_quat=data.mocap_quat.at[local, 0].set(jnp.asarray(fields["mocap_quat"], jnp.float32)),
             )
         return dataclasses.replace(state, physics=self.physics.kinematics(tuple(datas)))
 
@@ -293,6 +293,7 @@ class Env:
                                          "obj_to_target", "unscaled_reward")}
         info["success"] = jnp.zeros(self.num_envs, bool)
         info["invalid_action"] = jnp.zeros(self.num_envs, bool)
+        info["final_obs"] = obs
         return State(
             physics=datas,
             obs=obs,
@@ -474,10 +475,23 @@ def _merge_constants(parts: list[dict[str, Array]], sizes: list[int]) -> dict[st
 
 def make(
     tasks: str | Sequence[str],
-    envs_per_task: int = 1,
+    envs_per_task: int | None = None,
     seed: int = 0,
     reward_version: str = "v2",
+    num_envs: int | None = None,
     **kwargs: Any,
 ) -> Env:
-    """`mwjax.make("MT10", envs_per_task=256, seed=42)`: a batched task set (see `Env`)."""
+    """`mwjax.make("MT10", envs_per_task=256, seed=42)`: a batched task set (see `Env`).
+
+    `tasks` is a set name ("MT10", "MT1:<task>") or a list of task names. Give the batch either
+    per task (`envs_per_task`, default 1) or in total (`num_envs`, a multiple of the task count).
+    """
+    if num_envs is not None:
+        if envs_per_task is not None:
+            raise ValueError("give envs_per_task or num_envs, not both")
+        n_tasks = len(task_names(tasks))
+        if not isinstance(num_envs, int) or num_envs < n_tasks or num_envs % n_tasks:
+            raise ValueError(f"num_envs={num_envs!r} is not a positive multiple of the {n_tasks} tasks")
+        envs_per_task = num_envs // n_tasks
+    envs_per_task = 1 if envs_per_task is None else envs_per_task
     return Env(tasks, envs_per_task=envs_per_task, seed=seed, reward_version=reward_version, **kwargs)

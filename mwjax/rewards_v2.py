@@ -257,8 +257,13 @@ def push(step: StepInputs) -> tuple[Array, dict[str, Array]]:
         sigmoid="long_tail",
     )
     object_grasped = gripper_caging(
-        step, obj, obj_radius=0.015, pad_success_thresh=0.05, object_reach_radius=0.01,
-        xz_thresh=0.005, high_density=True,
+        step,
+        obj,
+        obj_radius=0.015,
+        pad_success_thresh=0.05,
+        object_reach_radius=0.01,
+        xz_thresh=0.005,
+        high_density=True,
     )
     reward = 2.0 * object_grasped
     # Quirk: `reward += 1.0 + reward + 5.0 * in_place` adds the caging term a second time.
@@ -307,8 +312,13 @@ def peg_insert_side(step: StepInputs) -> tuple[Array, dict[str, Array]]:
     )
     in_place = hamacher_product(in_place, hamacher_product(collision_box_2, collision_box_1))
     object_grasped = gripper_caging(
-        step, obj, obj_radius=0.0075, pad_success_thresh=0.03, object_reach_radius=0.01,
-        xz_thresh=0.005, high_density=True,
+        step,
+        obj,
+        obj_radius=0.0075,
+        pad_success_thresh=0.03,
+        object_reach_radius=0.01,
+        xz_thresh=0.005,
+        high_density=True,
     )
     lifted = (tcp_to_obj < 0.08) & (tcp_opened > 0) & (obj[2] - 0.01 > obj_init_pos[2])
     object_grasped = jnp.where(lifted, 1.0, object_grasped)

@@ -52,17 +52,26 @@ def replay_recorded_states(tasks: list[str]) -> Replay:
     env = mwjax.make(tasks, envs_per_task=resets * steps)
     order = env.task_list
 
-    def stacked(key: str) -> np.ndarray:
-        return np.concatenate([load(t)[key].reshape(resets * steps, *load(t)[key].shape[2:]) for t in order])
+    def rows(task: str, key: str) -> np.ndarray:
+        value = load(task)[key]
+        return value.reshape(resets * steps, *value.shape[2:])
 
     state = jax.jit(env.reset_to)(jnp.asarray(rand_vec_rows(env, steps)))
-    state = jax.jit(env.with_physics_state)(
-        state, stacked("qpos"), stacked("qvel"), stacked("mocap_pos")[:, 0], stacked("mocap_quat")[:, 0]
-    )
+    recorded = {
+        t: {
+            "qpos": rows(t, "qpos"),
+            "qvel": rows(t, "qvel"),
+            "mocap_pos": rows(t, "mocap_pos")[:, 0],
+            "mocap_quat": rows(t, "mocap_quat")[:, 0],
+        }
+        for t in order
+    }
+    state = jax.jit(env.with_physics_state)(state, recorded)
+    actions = np.concatenate([rows(t, "action") for t in order])
     previous = [np.concatenate([load(t)["reset_obs"][:, None], load(t)["obs"][:, :-1]], axis=1) for t in order]
     previous_obs = np.concatenate([p.reshape(resets * steps, -1) for p in previous])
     state = dataclasses.replace(state, obs=jnp.asarray(previous_obs, jnp.float32))
-    state = jax.jit(env.observe)(state, jnp.asarray(stacked("action")))
+    state = jax.jit(env.observe)(state, jnp.asarray(actions))
 
     def per_task(x: jax.Array) -> dict[str, np.ndarray]:
         x = np.asarray(x)

@@ -7,7 +7,7 @@ from collections.abc import Sequence
 import jax.numpy as jnp
 
 from mwjax import rewards_v2
-from mwjax.tasks.spec import Frame, Placement, PlaceFn, TaskSpec, quat_from_xmat
+from mwjax.tasks.spec import Frame, PlaceFn, Placement, TaskSpec, quat_from_xmat
 
 HAND_LOW, HAND_HIGH = (-0.5, 0.40, 0.05), (0.5, 1.0, 0.5)
 HAND_INIT = (0.0, 0.6, 0.2)

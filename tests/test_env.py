@@ -1,0 +1,151 @@
+"""The functional API: shapes, autoreset, truncation, determinism and bad input."""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import mwjax
+from mwjax.benchmarks import MT10
+
+TASKS = ["reach-v3", "drawer-open-v3", "drawer-close-v3"]  # two share a scene
+HORIZON = 3
+
+
+@pytest.fixture(scope="module")
+def env():
+    return mwjax.make(TASKS, envs_per_task=2, seed=3, max_episode_steps=HORIZON)
+
+
+@pytest.fixture(scope="module")
+def compiled(env):
+    return jax.jit(env.reset), jax.jit(env.step)
+
+
+def rollout(env, compiled, key, steps):
+    reset, step = compiled
+    state = reset(key)
+    states = [state]
+    for i in range(steps):
+        action = jax.random.uniform(jax.random.fold_in(key, i), (env.num_envs, 4), minval=-1.0, maxval=1.0)
+        state = step(state, action)
+        states.append(state)
+    return states
+
+
+@pytest.fixture(scope="module")
+def episode(env, compiled):
+    return rollout(env, compiled, jax.random.key(7), HORIZON + 1)
+
+
+def test_layout(env):
+    assert env.num_envs == 6
+    assert env.task_names == ("reach-v3",) * 2 + ("drawer-open-v3",) * 2 + ("drawer-close-v3",) * 2
+    assert [g.scene for g in env.physics.groups] == ["sawyer_reach_v3.xml", "sawyer_drawer.xml"]
+    assert [g.size for g in env.physics.groups] == [2, 4]
+
+
+def test_shapes_and_dtypes(env, episode):
+    state = episode[1]
+    assert state.obs.shape == (env.num_envs, 39) and state.obs.dtype == jnp.float32
+    assert state.reward.shape == (env.num_envs,) and state.reward.dtype == jnp.float32
+    assert state.terminated.dtype == jnp.bool_ and state.truncated.dtype == jnp.bool_
+    assert state.info["success"].shape == (env.num_envs,) and state.info["success"].dtype == jnp.bool_
+    for s in episode:
+        assert np.isfinite(np.asarray(s.obs)).all() and np.isfinite(np.asarray(s.reward)).all()
+
+
+def test_frame_stacking_and_goal(env, episode):
+    reset, first = episode[0], episode[1]
+    np.testing.assert_array_equal(reset.obs[:, 18:36], reset.obs[:, :18])
+    np.testing.assert_allclose(first.obs[:, 18:36], reset.obs[:, :18], atol=1e-7)
+    np.testing.assert_allclose(first.obs[:, 36:], np.clip(reset.target_pos, *goal_bounds(env)), atol=1e-7)
+
+
+def goal_bounds(env):
+    return np.asarray(env._goal_low), np.asarray(env._goal_high)
+
+
+def test_truncation_and_autoreset(env, episode):
+    before, at_horizon, after = episode[HORIZON - 1], episode[HORIZON], episode[HORIZON + 1]
+    assert not np.asarray(before.truncated).any()
+    assert np.asarray(at_horizon.truncated).all() and not np.asarray(at_horizon.terminated).any()
+    # SAME_STEP autoreset: the returned obs starts the next episode, the last one is kept aside.
+    np.testing.assert_array_equal(at_horizon.obs[:, :18], at_horizon.obs[:, 18:36])
+    assert not np.allclose(at_horizon.info["final_obs"], at_horizon.obs)
+    np.testing.assert_array_equal(at_horizon.steps, 0)
+    assert not np.asarray(after.truncated).any()
+    np.testing.assert_allclose(after.obs[:, 18:36], at_horizon.obs[:, :18], atol=1e-7)
+
+
+def test_default_horizon_is_reference():
+    assert mwjax.env.MAX_EPISODE_STEPS == 500
+
+
+def test_same_seed_same_rollout(env, compiled, episode):
+    again = rollout(env, compiled, jax.random.key(7), HORIZON + 1)
+    for a, b in zip(episode, again):
+        np.testing.assert_array_equal(a.obs, b.obs)
+        np.testing.assert_array_equal(a.reward, b.reward)
+
+
+def test_different_keys_draw_different_goals(env, compiled):
+    reset, _ = compiled
+    a, b = reset(jax.random.key(0)), reset(jax.random.key(1))
+    assert not np.allclose(a.target_pos, b.target_pos)
+    # every env draws its own variant: the two envs of a task differ
+    assert not np.allclose(a.target_pos[0], a.target_pos[1])
+
+
+def test_goal_hidden_when_partially_observable():
+    env = mwjax.make(["reach-v3"], envs_per_task=2, partially_observable=True)
+    state = jax.jit(env.reset)(jax.random.key(0))
+    np.testing.assert_array_equal(state.obs[:, 36:], 0.0)
+
+
+def test_unknown_task():
+    with pytest.raises(ValueError, match="unknown task 'reach-v9'"):
+        mwjax.make(["reach-v9"])
+    with pytest.raises(ValueError, match="unknown benchmark"):
+        mwjax.make("MT11")
+
+
+def test_bad_arguments():
+    with pytest.raises(ValueError, match="envs_per_task"):
+        mwjax.make("MT10", envs_per_task=0)
+    with pytest.raises(ValueError, match="reward_version"):
+        mwjax.make("MT10", reward_version="v3")
+    with pytest.raises(ValueError, match="duplicate"):
+        mwjax.make(["reach-v3", "reach-v3"])
+    with pytest.raises(ValueError, match="not a positive multiple of the 10 tasks"):
+        mwjax.make("MT10", num_envs=25)
+
+
+def test_bad_actions(env, compiled, episode):
+    _, step = compiled
+    state = episode[0]
+    with pytest.raises(ValueError, match="shape"):
+        step(state, jnp.zeros((env.num_envs, 3)))
+    with pytest.raises(ValueError, match="shape"):
+        step(state, jnp.zeros((env.num_envs + 1, 4)))
+    with pytest.raises(ValueError, match="floating"):
+        step(state, jnp.zeros((env.num_envs, 4), jnp.int32))
+    with pytest.raises(ValueError, match="NaN or inf"):
+        env.step(state, jnp.full((env.num_envs, 4), jnp.nan))
+
+
+def test_nan_action_under_jit_is_a_flagged_noop(env, compiled, episode):
+    _, step = compiled
+    state = episode[0]
+    action = jnp.zeros((env.num_envs, 4)).at[0, 1].set(jnp.nan)
+    nan_state = step(state, action)
+    zero_state = step(state, jnp.zeros((env.num_envs, 4)))
+    assert np.asarray(nan_state.info["invalid_action"]).tolist() == [True] + [False] * (env.num_envs - 1)
+    np.testing.assert_array_equal(nan_state.obs, zero_state.obs)
+    assert np.isfinite(np.asarray(nan_state.obs)).all()
+
+
+def test_mt10_task_order():
+    assert mwjax.benchmarks.task_names("MT10") == MT10

@@ -13,6 +13,7 @@ On a GPU set XLA_PYTHON_CLIENT_MEM_FRACTION (~0.45) so JAX leaves Warp room.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import datetime
 import json
 import os
@@ -34,7 +35,9 @@ def gpu_memory_used_mib() -> float | None:
     try:
         out = subprocess.run(
             ["nvidia-smi", "--query-gpu=memory.used", "--format=csv,noheader,nounits"],
-            capture_output=True, text=True, check=True,
+            capture_output=True,
+            text=True,
+            check=True,
         ).stdout
         return float(out.split()[0])
     except (OSError, subprocess.CalledProcessError, ValueError, IndexError):
@@ -45,16 +48,24 @@ def commit() -> str:
     if os.environ.get("MWJAX_COMMIT"):
         return os.environ["MWJAX_COMMIT"]
     try:
-        return subprocess.run(["git", "rev-parse", "HEAD"], capture_output=True, text=True, check=True).stdout.strip()
+        return subprocess.run(
+            ["git", "rev-parse", "HEAD"], capture_output=True, text=True, check=True
+        ).stdout.strip()
     except (OSError, subprocess.CalledProcessError):
         return "unknown"
 
 
-def measure(benchmark: str, total: int, steps: int, repeats: int, physics: mwjax.PhysicsConfig) -> dict:
+def measure(
+    benchmark: str,
+    total: int,
+    steps: int,
+    repeats: int,
+    physics: mwjax.PhysicsConfig,
+    physics_only_mode: bool = False,
+) -> dict:
     n_tasks = len(task_names(benchmark))
     if total % n_tasks:
         raise ValueError(f"batch {total} is not divisible by the {n_tasks} tasks of {benchmark}")
-    memory_before = gpu_memory_used_mib()
     t0 = time.perf_counter()
     env = mwjax.make(benchmark, envs_per_task=total // n_tasks, seed=0, physics=physics)
     build_s = time.perf_counter() - t0
@@ -66,18 +77,31 @@ def measure(benchmark: str, total: int, steps: int, repeats: int, physics: mwjax
             state = env.step(state, action)
             return (state, successes + state.info["success"].sum()), None
 
-        (state, successes), _ = jax.lax.scan(body, (state, jnp.zeros((), jnp.int32)), jax.random.split(key, steps))
+        (state, successes), _ = jax.lax.scan(
+            body, (state, jnp.zeros((), jnp.int32)), jax.random.split(key, steps)
+        )
         return state, successes
 
+    def physics_only(state: mwjax.State, key: jax.Array) -> tuple[mwjax.State, jax.Array]:
+        """The same number of physics calls with no action, obs, reward or reset work."""
+
+        def body(datas: tuple, _: None) -> tuple:
+            return env.physics.step(datas), None
+
+        datas, _ = jax.lax.scan(body, state.physics, None, length=steps)
+        return dataclasses.replace(state, physics=datas), jnp.zeros((), jnp.int32)
+
     reset = jax.jit(env.reset)
-    run = jax.jit(rollout, donate_argnums=0)
+    run = jax.jit(physics_only if physics_only_mode else rollout, donate_argnums=0)
     t0 = time.perf_counter()
     state = jax.block_until_ready(reset(jax.random.key(0)))
     reset_compile_s = time.perf_counter() - t0
     t0 = time.perf_counter()
     compiled = run.lower(state, jax.random.key(1)).compile()
     compile_s = time.perf_counter() - t0
-    state, _ = jax.block_until_ready(compiled(state, jax.random.key(1)))  # warm-up
+    t0 = time.perf_counter()
+    state, _ = jax.block_until_ready(compiled(state, jax.random.key(1)))  # warm-up, Warp JIT
+    first_rollout_s = time.perf_counter() - t0
     times = []
     for i in range(repeats):
         t0 = time.perf_counter()
@@ -85,8 +109,11 @@ def measure(benchmark: str, total: int, steps: int, repeats: int, physics: mwjax
         times.append(time.perf_counter() - t0)
     best = min(times)
     memory_after = gpu_memory_used_mib()
+    state_bytes = sum(x.nbytes for x in jax.tree.leaves(state))
+    stats = jax.devices()[0].memory_stats() or {}
     return {
         "benchmark": benchmark,
+        "mode": "physics only" if physics_only_mode else "env step",
         "num_envs": env.num_envs,
         "steps_per_rollout": steps,
         "env_steps_per_s": env.num_envs * steps / best,
@@ -94,11 +121,10 @@ def measure(benchmark: str, total: int, steps: int, repeats: int, physics: mwjax
         "build_s": build_s,
         "reset_compile_s": reset_compile_s,
         "step_compile_s": compile_s,
+        "first_rollout_s": first_rollout_s,
+        "state_bytes_per_env": state_bytes / env.num_envs,
+        "jax_peak_bytes_in_use": stats.get("peak_bytes_in_use"),
         "gpu_memory_used_mib": memory_after,
-        "gpu_memory_mib_per_1k_envs": (
-            None if memory_after is None or memory_before is None
-            else (memory_after - memory_before) / env.num_envs * 1000
-        ),
         "success_steps_last_rollout": int(successes),
     }
 
@@ -110,6 +136,7 @@ def main() -> None:
     parser.add_argument("--steps", type=int, default=500)
     parser.add_argument("--repeats", type=int, default=2)
     parser.add_argument("--physics", choices=["default", "fast"], default="default")
+    parser.add_argument("--physics-only", action="store_true", help="time the physics calls alone")
     parser.add_argument("--out", default=None, help="JSON path (default: benchmarks/results/...)")
     args = parser.parse_args()
     physics = mwjax.PhysicsConfig() if args.physics == "default" else mwjax.PhysicsConfig.fast()
@@ -120,11 +147,12 @@ def main() -> None:
         for total in args.batch:
             n_tasks = len(task_names(benchmark))
             total = total - total % n_tasks
-            row = measure(benchmark, total, args.steps, args.repeats, physics)
+            row = measure(benchmark, total, args.steps, args.repeats, physics, args.physics_only)
             rows.append(row)
             print(
                 f"{benchmark:>20} {row['num_envs']:>7} envs  {row['env_steps_per_s']:>12,.0f} env steps/s  "
-                f"compile {row['step_compile_s']:.0f}s  mem {row['gpu_memory_used_mib']} MiB",
+                f"compile {row['step_compile_s']:.0f}s  first rollout {row['first_rollout_s']:.0f}s  "
+                f"state {row['state_bytes_per_env'] / 1024:.0f} KiB/env",
                 flush=True,
             )
     result = {
@@ -138,15 +166,18 @@ def main() -> None:
         "xla_mem_fraction": os.environ.get("XLA_PYTHON_CLIENT_MEM_FRACTION"),
         "results": rows,
     }
-    out = Path(args.out) if args.out else RESULTS / (
-        f"throughput-{result['device'].replace(' ', '_')}-{result['date'][:10]}.json"
+    out = (
+        Path(args.out)
+        if args.out
+        else RESULTS / (f"throughput-{result['device'].replace(' ', '_')}-{result['date'][:10]}.json")
     )
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(json.dumps(result, indent=2))
     print()
     print(f"{'set':>20} {'envs':>7} {'env steps/s':>14} {'compile s':>10}")
     for row in rows:
-        print(f"{row['benchmark']:>20} {row['num_envs']:>7} {row['env_steps_per_s']:>14,.0f} {row['step_compile_s']:>10.1f}")
+        rate, compile_s = row["env_steps_per_s"], row["step_compile_s"]
+        print(f"{row['benchmark']:>20} {row['num_envs']:>7} {rate:>14,.0f} {compile_s:>10.1f}")
     print(f"device {result['device']}, commit {result['commit'][:10]}, {result['date']} -> {out}")
 
 

@@ -115,7 +115,7 @@ class Env:
                     tuple(sorted({b for s in members for b in s.moved_bodies})),
                     len(members) * envs_per_task,
                 )
-                for scene, members in zip(scenes, group_specs)
+                for scene, members in zip(scenes, group_specs, strict=True)
             ],
             physics or PhysicsConfig(),
         )
@@ -144,7 +144,9 @@ class Env:
         self.goal_variants = {name: variants[name] for name in self.task_list}
         width = max(v.shape[1] for v in variants.values())
         self._variants = jnp.asarray(
-            np.stack([np.pad(variants[n], ((0, 0), (0, width - variants[n].shape[1]))) for n in self.task_list]),
+            np.stack(
+                [np.pad(variants[n], ((0, 0), (0, width - variants[n].shape[1]))) for n in self.task_list]
+            ),
             jnp.float32,
         )
 
@@ -170,7 +172,9 @@ class Env:
         reference's `rand_vec`, zero-padded to the widest task of the set)."""
         rand_vecs = jnp.asarray(rand_vecs, jnp.float32)
         if rand_vecs.shape != (self.num_envs, self._variants.shape[2]):
-            raise ValueError(f"rand_vecs must have shape {(self.num_envs, self._variants.shape[2])}, got {rand_vecs.shape}")
+            raise ValueError(
+                f"rand_vecs must have shape {(self.num_envs, self._variants.shape[2])}, got {rand_vecs.shape}"
+            )
         keys = jax.random.split(jax.random.key(0) if key is None else key, self.num_envs)
         return self._reset_rows(self.physics.make_data(), rand_vecs, keys, jnp.ones(self.num_envs, bool))
 
@@ -264,18 +268,25 @@ class Env:
                 placement = jax.vmap(lambda v, s=settled_frame, f=rows.spec.place: f(v, s))(vecs)
                 placements.append(placement)
                 parts.append((rows, placement))
-            new_datas[g] = self._placed_data(datas[g], group, parts, done[group.start : group.start + group.size])
+            new_datas[g] = self._placed_data(
+                datas[g], group, parts, done[group.start : group.start + group.size]
+            )
         datas = self.physics.kinematics(tuple(new_datas))
         kin = self._kinematics(datas)
 
         curr_parts, target_parts, constant_parts = [], [], []
-        for rows, placement in zip(self._rows, placements):
+        for rows, placement in zip(self._rows, placements, strict=True):
             frames = kin[rows.group].rows(rows.local_start, rows.local_start + rows.size)
             model = self.physics.groups[rows.group].model
             settled_frame = Frame(model, rows.settled)
 
-            def one(k: Kinematics, p: Placement, rows: _TaskRows = rows, model: Any = model,
-                    settled: Frame = settled_frame) -> tuple[Array, dict[str, Array]]:
+            def one(
+                k: Kinematics,
+                p: Placement,
+                rows: _TaskRows = rows,
+                model: Any = model,
+                settled: Frame = settled_frame,
+            ) -> tuple[Array, dict[str, Array]]:
                 frame = Frame(model, k)
                 return _current_obs(rows.spec, frame), rows.spec.constants(frame, p, settled)
 
@@ -289,8 +300,17 @@ class Env:
         goal = jnp.zeros_like(target) if self.partially_observable else target
         obs = jnp.concatenate([curr, curr, goal], axis=-1)
         zeros = jnp.zeros(self.num_envs, jnp.float32)
-        info = {name: zeros for name in ("success", "near_object", "grasp_reward", "in_place_reward",
-                                         "obj_to_target", "unscaled_reward")}
+        info = {
+            name: zeros
+            for name in (
+                "success",
+                "near_object",
+                "grasp_reward",
+                "in_place_reward",
+                "obj_to_target",
+                "unscaled_reward",
+            )
+        }
         info["success"] = jnp.zeros(self.num_envs, bool)
         info["invalid_action"] = jnp.zeros(self.num_envs, bool)
         info["final_obs"] = obs
@@ -329,8 +349,12 @@ class Env:
             warm.append(jnp.broadcast_to(rows.settled_data["qacc_warmstart"], (n, model.nv)))
             ctrl.append(jnp.broadcast_to(rows.settled_data["ctrl"], (n, model.nu)))
         fresh = {
-            "qpos": qpos, "qvel": qvel, "mocap_pos": mocap_pos, "mocap_quat": mocap_quat,
-            "qacc_warmstart": warm, "ctrl": ctrl,
+            "qpos": qpos,
+            "qvel": qvel,
+            "mocap_pos": mocap_pos,
+            "mocap_quat": mocap_quat,
+            "qacc_warmstart": warm,
+            "ctrl": ctrl,
         }
         # These fields are the whole dynamic state; everything else is derived from them.
         fields = {
@@ -380,7 +404,7 @@ class Env:
         clip(a, -1, 1) / 100 within the task's mocap box; the fingers get [a3, -a3]."""
         delta = jnp.clip(action[:, :3], -1.0, 1.0) * _ACTION_SCALE
         out = []
-        for group, data in zip(self.physics.groups, datas):
+        for group, data in zip(self.physics.groups, datas, strict=True):
             rows = slice(group.start, group.start + group.size)
             hand = jnp.clip(data.mocap_pos[:, 0] + delta[rows], self._mocap_low[rows], self._mocap_high[rows])
             out.append(
@@ -417,9 +441,18 @@ class Env:
             sl = slice(rows.start, rows.start + rows.size)
             constants = {k: v[sl] for k, v in state.constants.items()}
 
-            def one(k: Kinematics, o: Array, a: Array, t: Array, c: dict[str, Array],
-                    m: Any = model, spec: TaskSpec = rows.spec) -> tuple[Array, dict[str, Array]]:
-                return spec.reward_v2(StepInputs(frame=Frame(m, k), obs=o, action=a, target_pos=t, constants=c))
+            def one(
+                k: Kinematics,
+                o: Array,
+                a: Array,
+                t: Array,
+                c: dict[str, Array],
+                m: Any = model,
+                spec: TaskSpec = rows.spec,
+            ) -> tuple[Array, dict[str, Array]]:
+                return spec.reward_v2(
+                    StepInputs(frame=Frame(m, k), obs=o, action=a, target_pos=t, constants=c)
+                )
 
             reward, info = jax.vmap(one)(frames, obs[sl], action[sl], state.target_pos[sl], constants)
             rewards.append(reward)
@@ -467,7 +500,7 @@ def _merge_constants(parts: list[dict[str, Array]], sizes: list[int]) -> dict[st
         merged[key] = jnp.concatenate(
             [
                 part[key].astype(jnp.float32) if key in part else jnp.zeros((n, *shape), jnp.float32)
-                for part, n in zip(parts, sizes)
+                for part, n in zip(parts, sizes, strict=True)
             ]
         )
     return merged

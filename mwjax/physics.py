@@ -55,9 +55,7 @@ class SceneGroup:
 class Physics:
     """One MJX-Warp batch per scene; batched data is a tuple with one `mjx.Data` per group."""
 
-    def __init__(
-        self, scenes: Sequence[tuple[str, tuple[str, ...], int]], config: PhysicsConfig
-    ) -> None:
+    def __init__(self, scenes: Sequence[tuple[str, tuple[str, ...], int]], config: PhysicsConfig) -> None:
         self.config = config
         groups = []
         start = 0
@@ -95,19 +93,18 @@ class Physics:
 
     def step(self, datas: tuple[mjx.Data, ...]) -> tuple[mjx.Data, ...]:
         """`substeps` physics steps, then kinematics so positions describe the new state."""
+        step = jax.vmap(mjx.step, in_axes=(None, 0))
         out = []
-        for group, data in zip(self.groups, datas):
-            step = jax.vmap(mjx.step, in_axes=(None, 0))
-            data = jax.lax.fori_loop(
-                0, self.config.substeps, lambda _, d, m=group.device_model: step(m, d), data
-            )
-            out.append(jax.vmap(mjx.kinematics, in_axes=(None, 0))(group.device_model, data))
+        for group, data in zip(self.groups, datas, strict=True):
+            model = group.device_model
+            data = jax.lax.fori_loop(0, self.config.substeps, lambda _, d, m=model: step(m, d), data)
+            out.append(jax.vmap(mjx.kinematics, in_axes=(None, 0))(model, data))
         return tuple(out)
 
     def kinematics(self, datas: tuple[mjx.Data, ...]) -> tuple[mjx.Data, ...]:
         return tuple(
             jax.vmap(mjx.kinematics, in_axes=(None, 0))(group.device_model, data)
-            for group, data in zip(self.groups, datas)
+            for group, data in zip(self.groups, datas, strict=True)
         )
 
 

@@ -66,8 +66,8 @@ def rect_prism_tolerance(curr: Array, zero: Array, one: Array) -> Array:
     def inside(lo: Array, hi: Array, v: Array) -> Array:
         return ((lo <= v) & (v <= hi)) | ((hi <= v) & (v <= lo))
 
-    is_inside = inside(zero[0], one[0], curr[0]) & inside(zero[1], one[1], curr[1]) & inside(
-        zero[2], one[2], curr[2]
+    is_inside = (
+        inside(zero[0], one[0], curr[0]) & inside(zero[1], one[1], curr[1]) & inside(zero[2], one[2], curr[2])
     )
     diff = one - zero
     depth = (curr - zero) / jnp.where(diff == 0, 1.0, diff)
@@ -182,9 +182,7 @@ def _pick_place_caging(step: StepInputs, obj_pos: Array) -> Array:
     obj_init_pos, init_tcp = step.constants["obj_init_pos"], step.constants["init_tcp"]
     tcp_obj_xz = jnp.linalg.norm(tcp[xz] - obj_pos[xz])
     xz_margin = jnp.linalg.norm(obj_init_pos[xz] - init_tcp[xz]) - xz_success_margin
-    xz_caging = tolerance(
-        tcp_obj_xz, bounds=(0.0, xz_success_margin), margin=xz_margin, sigmoid="long_tail"
-    )
+    xz_caging = tolerance(tcp_obj_xz, bounds=(0.0, xz_success_margin), margin=xz_margin, sigmoid="long_tail")
     gripper_closed = jnp.minimum(jnp.maximum(0.0, step.action[-1]), 1.0)
     caging = hamacher_product(y_caging, xz_caging)
     gripping = jnp.where(caging > 0.97, gripper_closed, 0.0)
@@ -350,9 +348,7 @@ def door_open(step: StepInputs) -> tuple[Array, dict[str, Array]]:
     threshold = 0.12
     radius = jnp.linalg.norm(hand[:2] - door[:2])
     # The reference takes the log only when radius > threshold (a Python `if`).
-    floor = jnp.where(
-        radius <= threshold, 0.0, 0.04 * jnp.log(jnp.maximum(radius - threshold, 1e-30)) + 0.4
-    )
+    floor = jnp.where(radius <= threshold, 0.0, 0.04 * jnp.log(jnp.maximum(radius - threshold, 1e-30)) + 0.4)
     above_floor = jnp.where(
         hand[2] >= floor,
         1.0,
@@ -394,9 +390,7 @@ def drawer_open(step: StepInputs) -> tuple[Array, dict[str, Array]]:
     handle = step.obs[4:7]
     target = step.target_pos
     handle_error = jnp.linalg.norm(handle - target)
-    reward_for_opening = tolerance(
-        handle_error, bounds=(0.0, 0.02), margin=max_dist, sigmoid="long_tail"
-    )
+    reward_for_opening = tolerance(handle_error, bounds=(0.0, 0.02), margin=max_dist, sigmoid="long_tail")
     handle_pos_init = target + jnp.array([0.0, max_dist, 0.0])
     scale = jnp.array([3.0, 3.0, 1.0])
     gripper_error = (handle - gripper) * scale
@@ -471,9 +465,7 @@ def button_press_topdown(step: StepInputs) -> tuple[Array, dict[str, Array]]:
     tcp_to_obj_init = jnp.linalg.norm(obj - step.constants["init_tcp"])
     obj_to_target = jnp.abs(step.target_pos[2] - obj[2])
     tcp_closed = 1.0 - step.obs[3]
-    near_button = tolerance(
-        tcp_to_obj, bounds=(0.0, 0.01), margin=tcp_to_obj_init, sigmoid="long_tail"
-    )
+    near_button = tolerance(tcp_to_obj, bounds=(0.0, 0.01), margin=tcp_to_obj_init, sigmoid="long_tail")
     button_pressed = tolerance(
         obj_to_target,
         bounds=(0.0, 0.005),

@@ -16,7 +16,7 @@ import mwjax
 FIXTURES = Path(__file__).parent / "fixtures" / "reference"
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def load(task: str) -> dict:
     with np.load(FIXTURES / f"{task}.npz") as archive:
         arrays = {key: archive[key] for key in archive.files}
@@ -68,7 +68,9 @@ def replay_recorded_states(tasks: list[str]) -> Replay:
     }
     state = jax.jit(env.with_physics_state)(state, recorded)
     actions = np.concatenate([rows(t, "action") for t in order])
-    previous = [np.concatenate([load(t)["reset_obs"][:, None], load(t)["obs"][:, :-1]], axis=1) for t in order]
+    previous = [
+        np.concatenate([load(t)["reset_obs"][:, None], load(t)["obs"][:, :-1]], axis=1) for t in order
+    ]
     previous_obs = np.concatenate([p.reshape(resets * steps, -1) for p in previous])
     state = dataclasses.replace(state, obs=jnp.asarray(previous_obs, jnp.float32))
     state = jax.jit(env.observe)(state, jnp.asarray(actions))
@@ -77,4 +79,6 @@ def replay_recorded_states(tasks: list[str]) -> Replay:
         x = np.asarray(x)
         return {t: x[env.task_rows(t)].reshape(resets, steps, *x.shape[1:]) for t in order}
 
-    return Replay(obs=per_task(state.obs), reward=per_task(state.reward), success=per_task(state.info["success"]))
+    return Replay(
+        obs=per_task(state.obs), reward=per_task(state.reward), success=per_task(state.info["success"])
+    )

@@ -86,7 +86,7 @@ def test_default_horizon_is_reference():
 
 def test_same_seed_same_rollout(env, compiled, episode):
     again = rollout(env, compiled, jax.random.key(7), HORIZON + 1)
-    for a, b in zip(episode, again):
+    for a, b in zip(episode, again, strict=True):
         np.testing.assert_array_equal(a.obs, b.obs)
         np.testing.assert_array_equal(a.reward, b.reward)
 

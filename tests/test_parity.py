@@ -63,7 +63,9 @@ def test_goal_variants_equal_reference(task):
 @pytest.mark.parametrize("task", MT10)
 def test_obs_given_state(task, replay):
     err = np.abs(replay.obs[task] - load(task)["obs"])
-    assert err.max() < OBS_TOL, f"max obs error {err.max():.3g} at {np.unravel_index(err.argmax(), err.shape)}"
+    assert err.max() < OBS_TOL, (
+        f"max obs error {err.max():.3g} at {np.unravel_index(err.argmax(), err.shape)}"
+    )
 
 
 @pytest.mark.parametrize("task", MT10)

@@ -30,13 +30,12 @@ import warnings
 from importlib import metadata as importlib_metadata
 
 import gymnasium
-import mujoco
-import numpy as np
-import scipy
-
 import metaworld
 import metaworld.env_dict as mw_env_dict
 import metaworld.policies as mw_policies
+import mujoco
+import numpy as np
+import scipy
 
 DEFAULT_TASKS = [
     "reach-v3",
@@ -162,11 +161,7 @@ def find_live_views(env) -> dict:
     model, data = env.model, env.data
     bufs = [("data", f, a) for f, a in _mj_arrays(data).items()]
     bufs += [("model", f, a) for f, a in _mj_arrays(model).items()]
-    attrs = {
-        k: v
-        for k, v in vars(env).items()
-        if isinstance(v, np.ndarray) and v.dtype.kind in "fiu"
-    }
+    attrs = {k: v for k, v in vars(env).items() if isinstance(v, np.ndarray) and v.dtype.kind in "fiu"}
     out = {}
     for k, v in sorted(attrs.items()):
         hits = []
@@ -210,8 +205,7 @@ def model_diffs(env, fresh) -> dict:
         rows = np.nonzero(np.any(neq.reshape(a.shape[0], -1), axis=1))[0]
         t = _obj_type_for_field("model", f, a, env.model)
         names = [
-            (mujoco.mj_id2name(env.model, t, int(r)) if t is not None else None) or str(int(r))
-            for r in rows
+            (mujoco.mj_id2name(env.model, t, int(r)) if t is not None else None) or str(int(r)) for r in rows
         ]
         out[f] = names
     return out
@@ -460,10 +454,14 @@ def record_task(task: str, seed: int, R: int, T: int, how: str) -> tuple[dict, d
     history_diffs = []
     if not np.array_equal(obs_again, rec["reset_obs"][0]):
         history_diffs.append("reset_obs")
-    for k, cur in (("reset_qpos", data.qpos), ("reset_qvel", data.qvel),
-                   ("reset_qacc_warmstart", data.qacc_warmstart),
-                   ("reset_mocap_pos", data.mocap_pos), ("body_pos", model.body_pos),
-                   ("site_pos", model.site_pos)):
+    for k, cur in (
+        ("reset_qpos", data.qpos),
+        ("reset_qvel", data.qvel),
+        ("reset_qacc_warmstart", data.qacc_warmstart),
+        ("reset_mocap_pos", data.mocap_pos),
+        ("body_pos", model.body_pos),
+        ("site_pos", model.site_pos),
+    ):
         if not np.array_equal(cur, rec[k][0]):
             history_diffs.append(k)
     for k, v in const_snaps[0].items():
@@ -473,9 +471,18 @@ def record_task(task: str, seed: int, R: int, T: int, how: str) -> tuple[dict, d
     # ---- assemble arrays
     out: dict[str, np.ndarray] = {}
     per_reset = {
-        "rand_vec", "reset_qpos", "reset_qvel", "reset_act", "reset_mocap_pos",
-        "reset_mocap_quat", "reset_qacc_warmstart", "reset_ctrl", "reset_obs",
-        "body_pos", "body_quat", "site_pos",
+        "rand_vec",
+        "reset_qpos",
+        "reset_qvel",
+        "reset_act",
+        "reset_mocap_pos",
+        "reset_mocap_quat",
+        "reset_qacc_warmstart",
+        "reset_ctrl",
+        "reset_obs",
+        "body_pos",
+        "body_quat",
+        "site_pos",
     }
     for k, vals in rec.items():
         arr = np.stack(vals)
@@ -490,9 +497,7 @@ def record_task(task: str, seed: int, R: int, T: int, how: str) -> tuple[dict, d
         out[k] = arr
 
     const_names = sorted(
-        n
-        for n in (set(EXPLICIT_CONSTS) | changed_names | inplace_names)
-        if all(n in s for s in const_snaps)
+        n for n in (set(EXPLICIT_CONSTS) | changed_names | inplace_names) if all(n in s for s in const_snaps)
     )
     skipped_consts = []
     for n in const_names:
@@ -517,9 +522,7 @@ def record_task(task: str, seed: int, R: int, T: int, how: str) -> tuple[dict, d
             for n in names:
                 if n not in cur:
                     cur.append(n)
-    stale = {
-        k: sorted({b for s in stale_per_reset for b in s[k]}) for k in ("bodies", "sites")
-    }
+    stale = {k: sorted({b for s in stale_per_reset for b in s[k]}) for k in ("bodies", "sites")}
     stale["init_tcp_minus_fk_tcp_per_reset"] = [s.get("init_tcp_minus_fk_tcp") for s in stale_per_reset]
 
     def _space(sp, attr):
@@ -538,11 +541,19 @@ def record_task(task: str, seed: int, R: int, T: int, how: str) -> tuple[dict, d
         "env_class": cls.__name__,
         "R": R,
         "T": T,
-        "action_source_per_reset": ["uniform[-1,1]" if r < 2 else f"{policy_cls.__name__}+N(0,0.1)" for r in range(R)],
+        "action_source_per_reset": [
+            "uniform[-1,1]" if r < 2 else f"{policy_cls.__name__}+N(0,0.1)" for r in range(R)
+        ],
         "action_rng": "np.random.default_rng([seed, task_index_in_ALL_V3_ENVIRONMENTS, r])",
         "scene_xml": os.path.basename(env2.fullpath),
         "model_name": os.path.relpath(env2.fullpath, os.path.dirname(metaworld.__file__)),
-        "nq": nq, "nv": nv, "nu": nu, "na": na, "nmocap": nmocap, "nbody": nbody, "nsite": nsite,
+        "nq": nq,
+        "nv": nv,
+        "nu": nu,
+        "na": na,
+        "nmocap": nmocap,
+        "nbody": nbody,
+        "nsite": nsite,
         "body_names": names_of(model, mujoco.mjtObj.mjOBJ_BODY, nbody),
         "site_names": names_of(model, mujoco.mjtObj.mjOBJ_SITE, nsite),
         "moved_bodies": model_changes.get("body_pos", []),
@@ -569,12 +580,16 @@ def record_task(task: str, seed: int, R: int, T: int, how: str) -> tuple[dict, d
         "policy_noise_sd": 0.1,
         "partially_observable": bool(env2._partially_observable),
         "info_v2_keys": info_keys,
-        "const_keys": [k[len("const_"):] for k in out if k.startswith("const_")],
+        "const_keys": [k[len("const_") :] for k in out if k.startswith("const_")],
         "const_skipped": skipped_consts,
         "const_assigned_by_reset": sorted(changed_names),
         "const_changed_in_place_by_reset": sorted(inplace_names - changed_names),
         "live_view_attrs": live_views,
-        "live_view_consts": sorted(k for k in live_views if f"const_{k}" in out and any(x.startswith(("data.", "model.")) for x in live_views[k])),
+        "live_view_consts": sorted(
+            k
+            for k in live_views
+            if f"const_{k}" in out and any(x.startswith(("data.", "model.")) for x in live_views[k])
+        ),
         "reset_model_calls_per_reset": reset_model_calls,
         "reset_depends_on_history": history_diffs,
         "stale_kinematics_after_reset": stale,
@@ -593,8 +608,12 @@ def record_task(task: str, seed: int, R: int, T: int, how: str) -> tuple[dict, d
 
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--tasks", nargs="+", default=DEFAULT_TASKS,
-                   help="task names (e.g. reach-v3) or 'all' for all 50 v3 tasks")
+    p.add_argument(
+        "--tasks",
+        nargs="+",
+        default=DEFAULT_TASKS,
+        help="task names (e.g. reach-v3) or 'all' for all 50 v3 tasks",
+    )
     p.add_argument("--out", default="tests/fixtures/reference")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--resets", type=int, default=4)
@@ -617,12 +636,12 @@ def main(argv=None) -> int:
         size = os.path.getsize(path)
         total += size
         print(
-            f"{t:28s} {size/1024:7.1f} KiB  moved bodies={meta['moved_bodies']} "
+            f"{t:28s} {size / 1024:7.1f} KiB  moved bodies={meta['moved_bodies']} "
             f"sites={meta['moved_sites']} live={meta['live_view_consts']} "
             f"succ v1/v2={meta['success_steps']['v1']}/{meta['success_steps']['v2']}",
             flush=True,
         )
-    print(f"total {total/1024/1024:.2f} MiB")
+    print(f"total {total / 1024 / 1024:.2f} MiB")
     return 0
 
 

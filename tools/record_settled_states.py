@@ -25,8 +25,21 @@ from metaworld.env_dict import ALL_V3_ENVIRONMENTS
 
 # Arrays read from the settled data. Kinematic arrays are as mj_step leaves them (computed before
 # the last substep's integration), which is exactly what reset_model reads after _reset_hand.
-FIELDS = ("qpos", "qvel", "act", "qacc_warmstart", "ctrl", "mocap_pos", "mocap_quat",
-          "xpos", "xquat", "site_xpos", "site_xmat", "geom_xpos", "geom_xmat")
+FIELDS = (
+    "qpos",
+    "qvel",
+    "act",
+    "qacc_warmstart",
+    "ctrl",
+    "mocap_pos",
+    "mocap_quat",
+    "xpos",
+    "xquat",
+    "site_xpos",
+    "site_xmat",
+    "geom_xpos",
+    "geom_xmat",
+)
 
 
 def settle(env) -> mujoco.MjData:
@@ -57,16 +70,22 @@ def main() -> None:
         # _reset_hand, so they match bit for bit, except in the tasks whose reset_model steps the
         # physics again after placing objects (box-close, coffee-*, door-lock).
         if not np.array_equal(data.qpos[:9], env.data.qpos[:9]):
-            print(f"{name}: reset_model steps after settling (arm moved on by "
-                  f"{np.abs(data.qpos[:9] - env.data.qpos[:9]).max():.3g} rad)")
+            print(
+                f"{name}: reset_model steps after settling (arm moved on by "
+                f"{np.abs(data.qpos[:9] - env.data.qpos[:9]).max():.3g} rad)"
+            )
         for field in FIELDS:
             arrays[f"{name}/{field}"] = np.array(getattr(data, field), dtype=np.float64)
         env.close()
-    arrays["meta"] = np.array(json.dumps({
-        "metaworld": metaworld.__version__ if hasattr(metaworld, "__version__") else "3.1.1",
-        "mujoco": mujoco.__version__,
-        "how": "tools/record_settled_states.py in a venv with metaworld==3.1.1",
-    }))
+    arrays["meta"] = np.array(
+        json.dumps(
+            {
+                "metaworld": metaworld.__version__ if hasattr(metaworld, "__version__") else "3.1.1",
+                "mujoco": mujoco.__version__,
+                "how": "tools/record_settled_states.py in a venv with metaworld==3.1.1",
+            }
+        )
+    )
     np.savez_compressed(args.out, **arrays)
     print(f"wrote {args.out}: {len(ALL_V3_ENVIRONMENTS)} tasks")
 

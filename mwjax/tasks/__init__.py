@@ -6,9 +6,7 @@ from mwjax.tasks import articulated, peg, reach_push_pick_place
 from mwjax.tasks.spec import TaskSpec
 
 TASKS: dict[str, TaskSpec] = {
-    spec.name: spec
-    for family in (reach_push_pick_place, articulated, peg)
-    for spec in family.TASKS
+    spec.name: spec for family in (reach_push_pick_place, articulated, peg) for spec in family.TASKS
 }
 
 

@@ -206,9 +206,7 @@ def quat_from_xmat(mat: Array) -> Array:
         q = q.at[k].set(mat[k, i] + mat[i, k])
         return q.at[3].set(mat[k, j] - mat[j, k])
 
-    from_trace = jnp.stack(
-        [mat[2, 1] - mat[1, 2], mat[0, 2] - mat[2, 0], mat[1, 0] - mat[0, 1], 1.0 + trace]
-    )
+    from_trace = jnp.stack([mat[2, 1] - mat[1, 2], mat[0, 2] - mat[2, 0], mat[1, 0] - mat[0, 1], 1.0 + trace])
     candidates = jnp.stack([from_diagonal(0), from_diagonal(1), from_diagonal(2), from_trace])
     q = candidates[choice]
     return q / jnp.linalg.norm(q)

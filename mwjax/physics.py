@@ -97,7 +97,9 @@ class Physics:
         out = []
         for group, data in zip(self.groups, datas, strict=True):
             model = group.device_model
-            data = jax.lax.fori_loop(0, self.config.substeps, lambda _, d, m=model: step(m, d), data)
+            # Unrolled: a device-side loop would cost a host round trip per substep on GPU.
+            for _ in range(self.config.substeps):
+                data = step(model, data)
             out.append(jax.vmap(mjx.kinematics, in_axes=(None, 0))(model, data))
         return tuple(out)
 

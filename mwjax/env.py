@@ -239,9 +239,9 @@ class Env:
             info=info,
             steps=steps,
         )
-        if not self.autoreset:
-            return stepped
         done = terminated | truncated
+        if not self.autoreset:
+            return self._with_final(stepped, done)
         return jax.lax.cond(
             jnp.any(done), lambda s: self._autoreset(s, done), lambda s: self._with_final(s, done), stepped
         )

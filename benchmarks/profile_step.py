@@ -84,7 +84,8 @@ def main() -> None:
         "date": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
         "env_steps_per_s": rows,
     }
-    out = RESULTS / f"profile-{args.set}-{result['device'].replace(' ', '_')}-{result['date'][:10]}.json"
+    name = f"profile-{args.set}-{result['device']}-{result['date'][:10]}".replace(" ", "_").replace(":", "_")
+    out = RESULTS / f"{name}.json"
     out.write_text(json.dumps(result, indent=2))
     print(f"-> {out}")
 

@@ -105,5 +105,5 @@ def test_free_running_drift(task, free_run):
     # The stacked previous frame is left out: at step 1 it is the reset frame (see test_reset_obs).
     current = np.r_[0:18, 36:39]
     drift = np.abs(obs[task] - load(task)["obs"][:, :FREE_RUN_STEPS])[..., current].max(axis=(0, 2))
-    print(f"{task}: obs drift per step {np.array2string(drift, precision=2)}")
+    print(f"{task}: obs drift per step", " ".join(f"{d:.1e}" for d in drift))
     assert drift.max() < FREE_RUN_OBS_TOL, f"drift {drift.max():.3g} after {drift.argmax() + 1} steps"

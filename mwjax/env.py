@@ -155,8 +155,8 @@ class Env:
 
         self._mocap_low = per_env([r.spec.mocap_bounds[0] for r in rows])
         self._mocap_high = per_env([r.spec.mocap_bounds[1] for r in rows])
-        self._goal_low = per_env([r.spec.goal_low for r in rows])
-        self._goal_high = per_env([r.spec.goal_high for r in rows])
+        self._goal_low = per_env([r.spec.goal_bounds[0] for r in rows])
+        self._goal_high = per_env([r.spec.goal_bounds[1] for r in rows])
 
     # ----------------------------------------------------------------------------------------
     # Public functional API

@@ -9,7 +9,6 @@ import jax.numpy as jnp
 from mwjax import rewards_v2
 from mwjax.tasks.spec import Frame, PlaceFn, Placement, TaskSpec, quat_from_xmat
 
-HAND_LOW, HAND_HIGH = (-0.5, 0.40, 0.05), (0.5, 1.0, 0.5)
 HAND_INIT = (0.0, 0.6, 0.2)
 
 
@@ -84,8 +83,6 @@ DOOR_OPEN = TaskSpec(
     name="door-open-v3",
     scene="sawyer_door_pull.xml",
     hand_init_pos=HAND_INIT,
-    hand_low=HAND_LOW,
-    hand_high=HAND_HIGH,
     random_low=(0.0, 0.85, 0.15),
     random_high=(0.1, 0.95, 0.15),
     goal_low=(-0.3, 0.4, 0.1499),
@@ -101,13 +98,8 @@ DRAWER_OPEN = TaskSpec(
     name="drawer-open-v3",
     scene="sawyer_drawer.xml",
     hand_init_pos=HAND_INIT,
-    hand_low=HAND_LOW,
-    hand_high=HAND_HIGH,
     random_low=(-0.1, 0.9, 0.0),
     random_high=(0.1, 0.9, 0.0),
-    # Reference: goal_space = hand bounds.
-    goal_low=HAND_LOW,
-    goal_high=HAND_HIGH,
     # No joint write: the drawer slide keeps its settled qpos (target = closed handle - maxDist 0.2).
     place=place_fixture("drawer", (0.0, -0.16 - 0.2, 0.09)),
     constants=_init_tcp,
@@ -120,12 +112,8 @@ DRAWER_CLOSE = TaskSpec(
     name="drawer-close-v3",
     scene="sawyer_drawer.xml",
     hand_init_pos=HAND_INIT,
-    hand_low=HAND_LOW,
-    hand_high=HAND_HIGH,
     random_low=(-0.1, 0.9, 0.0),
     random_high=(0.1, 0.9, 0.0),
-    goal_low=HAND_LOW,
-    goal_high=HAND_HIGH,
     # Reference quirk: its _set_obj_xyz(-maxDist) writes qpos[9] only and keeps the drawer's qvel.
     place=place_fixture("drawer", (0.0, -0.16, 0.09), joint="goal_slidey", joint_pos=-0.15),
     constants=_drawer_close_constants,
@@ -201,12 +189,8 @@ BUTTON_PRESS_TOPDOWN = TaskSpec(
     name="button-press-topdown-v3",
     scene="sawyer_button_press_topdown.xml",
     hand_init_pos=_HAND_INIT_NEAR,
-    hand_low=HAND_LOW,
-    hand_high=HAND_HIGH,
     random_low=(-0.1, 0.8, 0.115),
     random_high=(0.1, 0.9, 0.115),
-    goal_low=HAND_LOW,
-    goal_high=HAND_HIGH,
     # Only the box moves; the button keeps its settled joint state. The goal placed here is
     # replaced by the "hole" site in constants.
     place=place_fixture("box", (0.0, 0.0, 0.0)),
@@ -220,12 +204,8 @@ WINDOW_OPEN = TaskSpec(
     name="window-open-v3",
     scene="sawyer_window_horizontal.xml",
     hand_init_pos=_HAND_INIT_NEAR,
-    hand_low=HAND_LOW,
-    hand_high=HAND_HIGH,
     random_low=(-0.1, 0.7, 0.16),
     random_high=(0.1, 0.9, 0.16),
-    goal_low=HAND_LOW,
-    goal_high=HAND_HIGH,
     # data.joint("window_slide").qpos = 0 is a bare write: the slide's qvel is kept.
     place=place_fixture("window", (0.2, 0.0, 0.0), joint="window_slide", joint_pos=0.0),
     constants=_window_open_constants,
@@ -238,12 +218,8 @@ WINDOW_CLOSE = TaskSpec(
     name="window-close-v3",
     scene="sawyer_window_horizontal.xml",
     hand_init_pos=_HAND_INIT_NEAR,
-    hand_low=HAND_LOW,
-    hand_high=HAND_HIGH,
     random_low=(0.0, 0.75, 0.2),
     random_high=(0.0, 0.9, 0.2),
-    goal_low=HAND_LOW,
-    goal_high=HAND_HIGH,
     # The window starts open (slide 0.2, bare qpos write); the goal is rand_vec itself.
     place=place_fixture("window", (0.0, 0.0, 0.0), joint="window_slide", joint_pos=0.2),
     constants=_window_close_constants,

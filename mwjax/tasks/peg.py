@@ -48,8 +48,6 @@ PEG_INSERT_SIDE = TaskSpec(
     name="peg-insert-side-v3",
     scene="sawyer_peg_insertion_side.xml",
     hand_init_pos=(0.0, 0.6, 0.2),
-    hand_low=(-0.5, 0.40, 0.05),
-    hand_high=(0.5, 1.0, 0.5),
     random_low=(0.0, 0.5, 0.02, *_BOX_LOW),
     random_high=(0.2, 0.7, 0.02, *_BOX_HIGH),
     goal_low=tuple(lo + d for lo, d in zip(_BOX_LOW, _HOLE_OFFSET, strict=True)),

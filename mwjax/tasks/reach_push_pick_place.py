@@ -8,8 +8,6 @@ import numpy as np
 from mwjax import rewards_v2
 from mwjax.tasks.spec import Frame, Placement, TaskSpec, quat_from_xmat, set_object_xyz
 
-HAND_LOW, HAND_HIGH = (-0.5, 0.40, 0.05), (0.5, 1.0, 0.5)
-
 
 def _puck(frame: Frame) -> tuple[jnp.ndarray, jnp.ndarray]:
     return frame.body_pos("obj")[None], quat_from_xmat(frame.geom_xmat("objGeom"))[None]
@@ -53,8 +51,6 @@ REACH = TaskSpec(
     name="reach-v3",
     scene="sawyer_reach_v3.xml",
     hand_init_pos=(0.0, 0.6, 0.2),
-    hand_low=HAND_LOW,
-    hand_high=HAND_HIGH,
     random_low=(-0.1, 0.6, 0.02, -0.1, 0.8, 0.05),
     random_high=(0.1, 0.7, 0.02, 0.1, 0.9, 0.3),
     goal_low=(-0.1, 0.8, 0.05),
@@ -70,8 +66,6 @@ PUSH = TaskSpec(
     name="push-v3",
     scene="sawyer_push_v3.xml",
     hand_init_pos=(0.0, 0.6, 0.2),
-    hand_low=HAND_LOW,
-    hand_high=HAND_HIGH,
     random_low=(-0.1, 0.6, 0.02, -0.1, 0.8, 0.01),
     random_high=(0.1, 0.7, 0.02, 0.1, 0.9, 0.02),
     goal_low=(-0.1, 0.8, 0.01),
@@ -88,8 +82,6 @@ PICK_PLACE = TaskSpec(
     name="pick-place-v3",
     scene="sawyer_pick_place_v3.xml",
     hand_init_pos=(0.0, 0.6, 0.2),
-    hand_low=HAND_LOW,
-    hand_high=HAND_HIGH,
     random_low=(-0.1, 0.6, 0.02, -0.1, 0.8, 0.05),
     random_high=(0.1, 0.7, 0.02, 0.1, 0.9, 0.3),
     goal_low=(-0.1, 0.8, 0.05),

@@ -150,23 +150,32 @@ def _no_constants(frame: Frame, placement: Placement, settled: Frame) -> dict[st
     return {}
 
 
+# The hand box (`hand_low`/`hand_high`) that all but a few reference tasks declare.
+HAND_LOW, HAND_HIGH = (-0.5, 0.40, 0.05), (0.5, 1.0, 0.5)
+
+
 @dataclasses.dataclass(frozen=True)
 class TaskSpec:
-    """One Meta-World task. Bounds are the reference's, in metres."""
+    """One Meta-World task. Bounds are the reference's, in metres.
+
+    `goal_low`/`goal_high` are the reference's `goal_space`, which step observations clip the goal
+    to; left out, they are the hand box, as many reference tasks declare it. The mocap box
+    defaults to the hand box, as in the reference.
+    """
 
     name: str
     scene: str
     hand_init_pos: tuple[float, float, float]
-    hand_low: tuple[float, float, float]
-    hand_high: tuple[float, float, float]
     random_low: tuple[float, ...]
     random_high: tuple[float, ...]
-    goal_low: tuple[float, float, float]
-    goal_high: tuple[float, float, float]
     place: PlaceFn
     objects: ObjectsFn
     reward_v2: RewardFn
     constants: ConstantsFn = _no_constants
+    hand_low: tuple[float, float, float] = HAND_LOW
+    hand_high: tuple[float, float, float] = HAND_HIGH
+    goal_low: tuple[float, float, float] | None = None
+    goal_high: tuple[float, float, float] | None = None
     mocap_low: tuple[float, float, float] | None = None
     mocap_high: tuple[float, float, float] | None = None
     moved_bodies: tuple[str, ...] = ()
@@ -177,6 +186,12 @@ class TaskSpec:
     def mocap_bounds(self) -> tuple[np.ndarray, np.ndarray]:
         low = self.hand_low if self.mocap_low is None else self.mocap_low
         high = self.hand_high if self.mocap_high is None else self.mocap_high
+        return np.asarray(low, np.float32), np.asarray(high, np.float32)
+
+    @property
+    def goal_bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        low = self.hand_low if self.goal_low is None else self.goal_low
+        high = self.hand_high if self.goal_high is None else self.goal_high
         return np.asarray(low, np.float32), np.asarray(high, np.float32)
 
 

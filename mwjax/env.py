@@ -32,6 +32,8 @@ _HAND_SPACE_LOW = np.array([-0.525, 0.348, -0.0525], np.float32)
 _HAND_SPACE_HIGH = np.array([0.525, 1.025, 0.7], np.float32)
 _HAND_QUAT = np.array([1.0, 0.0, 1.0, 0.0], np.float32)
 _ACTION_SCALE = 1.0 / 100
+# The float info terms every V2 kernel reports besides `success`.
+_REWARD_INFO = ("near_object", "grasp_reward", "in_place_reward", "obj_to_target", "unscaled_reward")
 
 
 @jax.tree_util.register_dataclass
@@ -180,15 +182,12 @@ class Env:
 
     def task_rows(self, task: str) -> slice:
         """The rows of `task` in the env batch."""
-        for rows in self._rows:
-            if rows.spec.name == task:
-                return slice(rows.start, rows.start + rows.size)
-        raise ValueError(f"{task!r} is not in this env's tasks {self.task_list}")
+        rows = self._task(task)
+        return slice(rows.start, rows.start + rows.size)
 
     def kinematics(self, state: State, task: str) -> Kinematics:
         """qpos, qvel and the body/site/geom poses of `task`'s rows (its scene's ids)."""
-        self.task_rows(task)
-        rows = next(r for r in self._rows if r.spec.name == task)
+        rows = self._task(task)
         return Kinematics.of(state.physics[rows.group]).rows(rows.local_start, rows.local_start + rows.size)
 
     def with_physics_state(self, state: State, physics: Mapping[str, Mapping[str, Array]]) -> State:
@@ -197,8 +196,7 @@ class Env:
         entries being the hand's. Kinematics are recomputed; use `observe` for obs and rewards."""
         datas = list(state.physics)
         for task, fields in physics.items():
-            self.task_rows(task)
-            rows = next(r for r in self._rows if r.spec.name == task)
+            rows = self._task(task)
             local = slice(rows.local_start, rows.local_start + rows.size)
             data = datas[rows.group]
             datas[rows.group] = data.replace(
@@ -245,6 +243,12 @@ class Env:
         return jax.lax.cond(
             jnp.any(done), lambda s: self._autoreset(s, done), lambda s: self._with_final(s, done), stepped
         )
+
+    def _task(self, task: str) -> _TaskRows:
+        for rows in self._rows:
+            if rows.spec.name == task:
+                return rows
+        raise ValueError(f"{task!r} is not in this env's tasks {self.task_list}")
 
     # ----------------------------------------------------------------------------------------
     # Reset
@@ -300,17 +304,7 @@ class Env:
         goal = jnp.zeros_like(target) if self.partially_observable else target
         obs = jnp.concatenate([curr, curr, goal], axis=-1)
         zeros = jnp.zeros(self.num_envs, jnp.float32)
-        info = {
-            name: zeros
-            for name in (
-                "success",
-                "near_object",
-                "grasp_reward",
-                "in_place_reward",
-                "obj_to_target",
-                "unscaled_reward",
-            )
-        }
+        info = {name: zeros for name in _REWARD_INFO}
         info["success"] = jnp.zeros(self.num_envs, bool)
         info["invalid_action"] = jnp.zeros(self.num_envs, bool)
         info["final_obs"] = obs

@@ -221,7 +221,8 @@ def pick_place(step: StepInputs) -> tuple[Array, dict[str, Array]]:
 # ---- reach, push (reach_push_pick_place.py) ---------------------------------------------------
 
 
-def reach(step: StepInputs) -> tuple[Array, dict[str, Array]]:
+def _reach(step: StepInputs) -> tuple[Array, Array, Array]:
+    """reach's V2 reward (shared by reach-wall): `(reward, tcp_to_target, in_place)`."""
     tcp_to_target = jnp.linalg.norm(step.frame.tcp_center - step.target_pos)
     in_place = tolerance(
         tcp_to_target,
@@ -230,13 +231,30 @@ def reach(step: StepInputs) -> tuple[Array, dict[str, Array]]:
         margin=jnp.linalg.norm(step.constants["hand_init_pos"] - step.target_pos),
         sigmoid="long_tail",
     )
-    reward = 10.0 * in_place
+    return 10.0 * in_place, tcp_to_target, in_place
+
+
+def reach(step: StepInputs) -> tuple[Array, dict[str, Array]]:
+    reward, tcp_to_target, in_place = _reach(step)
     # Quirk: reach reports the raw tcp-goal distance as near_object and grasp_reward.
     return _info(
         reward,
         success=tcp_to_target <= 0.05,
         near_object=tcp_to_target,
         grasp_reward=tcp_to_target,
+        in_place_reward=in_place,
+        obj_to_target=tcp_to_target,
+    )
+
+
+def reach_wall(step: StepInputs) -> tuple[Array, dict[str, Array]]:
+    reward, tcp_to_target, in_place = _reach(step)
+    # reach-wall reports near_object and grasp_reward as constant 0.
+    return _info(
+        reward,
+        success=tcp_to_target <= 0.05,
+        near_object=0.0,
+        grasp_reward=0.0,
         in_place_reward=in_place,
         obj_to_target=tcp_to_target,
     )
@@ -271,6 +289,130 @@ def push(step: StepInputs) -> tuple[Array, dict[str, Array]]:
     return _info(
         reward,
         success=target_to_obj <= TARGET_RADIUS,
+        near_object=tcp_to_obj <= 0.03,
+        grasp_reward=object_grasped,
+        in_place_reward=in_place,
+        obj_to_target=target_to_obj,
+    )
+
+
+def _around_wall(
+    step: StepInputs,
+    midpoint: Array,
+    in_place_scaling: Array,
+    pick: bool,
+) -> tuple[Array, dict[str, Array]]:
+    """push-wall and pick-place-wall: in place at a midpoint past the wall, then at the goal.
+
+    The base is `2 * caging` for push-wall (high density caging) and `hamacher(caging, in_place
+    at midpoint)` for pick-place-wall (plain caging), whose bonus also needs the puck lifted.
+    """
+    obj = step.obs[4:7]
+    tcp_opened = step.obs[3]
+    target = step.target_pos
+    obj_init_pos = step.constants["obj_init_pos"]
+    tcp_to_obj = jnp.linalg.norm(obj - step.frame.tcp_center)
+    obj_to_midpoint = jnp.linalg.norm((obj - midpoint) * in_place_scaling)
+    obj_to_midpoint_init = jnp.linalg.norm((obj_init_pos - midpoint) * in_place_scaling)
+    obj_to_target = jnp.linalg.norm(obj - target)
+    in_place_part1 = tolerance(
+        obj_to_midpoint, bounds=(0.0, TARGET_RADIUS), margin=obj_to_midpoint_init, sigmoid="long_tail"
+    )
+    in_place_part2 = tolerance(
+        obj_to_target,
+        bounds=(0.0, TARGET_RADIUS),
+        margin=jnp.linalg.norm(obj_init_pos - target),
+        sigmoid="long_tail",
+    )
+    object_grasped = gripper_caging(
+        step,
+        obj,
+        obj_radius=0.015,
+        pad_success_thresh=0.05,
+        object_reach_radius=0.01,
+        xz_thresh=0.005,
+        high_density=not pick,
+    )
+    base = hamacher_product(object_grasped, in_place_part1) if pick else 2.0 * object_grasped
+    near = (tcp_to_obj < 0.02) & (tcp_opened > 0)
+    if pick:
+        near = near & (obj[2] - 0.015 > obj_init_pos[2])
+    reward = jnp.where(near, base + 1.0 + 4.0 * in_place_part1, base)
+    reward = jnp.where(near & (obj[1] > 0.75), base + 1.0 + 4.0 + 3.0 * in_place_part2, reward)
+    reward = jnp.where(obj_to_target < TARGET_RADIUS, 10.0, reward)
+    return _info(
+        reward,
+        success=obj_to_target <= 0.07,
+        near_object=tcp_to_obj <= 0.03,
+        grasp_reward=object_grasped,
+        in_place_reward=in_place_part2,
+        obj_to_target=obj_to_target,
+    )
+
+
+def push_wall(step: StepInputs) -> tuple[Array, dict[str, Array]]:
+    # The midpoint's z follows the puck (so only x and y count).
+    midpoint = jnp.stack([-0.05, 0.77, step.obs[6]])
+    return _around_wall(step, midpoint, jnp.array([3.0, 1.0, 1.0]), pick=False)
+
+
+def pick_place_wall(step: StepInputs) -> tuple[Array, dict[str, Array]]:
+    midpoint = jnp.stack([step.target_pos[0], 0.77, 0.25])
+    return _around_wall(step, midpoint, jnp.array([1.0, 1.0, 3.0]), pick=True)
+
+
+def _push_back_caging(step: StepInputs, obj_pos: Array, obj_radius: float) -> Array:
+    """push-back's own `_gripper_caging_reward` override: y caging and y gripping from the pads.
+
+    Reference quirk reproduced: `init_left_pad`/`init_right_pad` are live views into
+    `data.xpos`, so the margins are measured from the current pads.
+    """
+    frame = step.frame
+    pad_success_margin, x_z_success_margin = 0.05, 0.01
+    grip_success_margin = obj_radius + 0.003
+    left_pad, right_pad = frame.left_pad, frame.right_pad
+    delta_right = obj_pos[1] - right_pad[1]
+    delta_left = left_pad[1] - obj_pos[1]
+    right_margin = jnp.abs(jnp.abs(obj_pos[1] - right_pad[1]) - pad_success_margin)
+    left_margin = jnp.abs(jnp.abs(obj_pos[1] - left_pad[1]) - pad_success_margin)
+
+    def pads(upper: float) -> Array:
+        right = tolerance(delta_right, bounds=(obj_radius, upper), margin=right_margin, sigmoid="long_tail")
+        left = tolerance(delta_left, bounds=(obj_radius, upper), margin=left_margin, sigmoid="long_tail")
+        return hamacher_product(right, left)
+
+    y_caging, y_gripping = pads(pad_success_margin), pads(grip_success_margin)
+    xz = jnp.array([0, 2])
+    obj_init_pos, init_tcp = step.constants["obj_init_pos"], step.constants["init_tcp"]
+    tcp_obj_xz = jnp.linalg.norm(frame.tcp_center[xz] - obj_pos[xz])
+    xz_margin = jnp.linalg.norm(obj_init_pos[xz] - init_tcp[xz]) - x_z_success_margin
+    x_z_caging = tolerance(
+        tcp_obj_xz, bounds=(0.0, x_z_success_margin), margin=xz_margin, sigmoid="long_tail"
+    )
+    caging = hamacher_product(y_caging, x_z_caging)
+    gripping = jnp.where(caging > 0.95, y_gripping, 0.0)
+    return (caging + gripping) / 2
+
+
+def push_back(step: StepInputs) -> tuple[Array, dict[str, Array]]:
+    obj = step.obs[4:7]
+    tcp_opened = step.obs[3]
+    target = step.target_pos
+    tcp_to_obj = jnp.linalg.norm(obj - step.frame.tcp_center)
+    target_to_obj = jnp.linalg.norm(obj - target)
+    target_to_obj_init = jnp.linalg.norm(step.constants["obj_init_pos"] - target)
+    in_place = tolerance(
+        target_to_obj, bounds=(0.0, TARGET_RADIUS), margin=target_to_obj_init, sigmoid="long_tail"
+    )
+    object_grasped = _push_back_caging(step, obj, obj_radius=0.007)
+    reward = hamacher_product(object_grasped, in_place)
+    pushing = (tcp_to_obj < 0.01) & (0 < tcp_opened) & (tcp_opened < 0.55)
+    pushing = pushing & (target_to_obj_init - target_to_obj > 0.01)
+    reward = jnp.where(pushing, reward + 1.0 + 5.0 * in_place, reward)
+    reward = jnp.where(target_to_obj < TARGET_RADIUS, 10.0, reward)
+    return _info(
+        reward,
+        success=target_to_obj <= 0.07,
         near_object=tcp_to_obj <= 0.03,
         grasp_reward=object_grasped,
         in_place_reward=in_place,
@@ -457,31 +599,77 @@ def drawer_close(step: StepInputs) -> tuple[Array, dict[str, Array]]:
 # ---- button-press-topdown, window (articulated.py) -------------------------------------------
 
 
-def button_press_topdown(step: StepInputs) -> tuple[Array, dict[str, Array]]:
+def _button_terms(step: StepInputs, axis: int, near_radius: float) -> tuple[Array, Array, Array, Array]:
+    """The terms every V2 button reward shares: reach the button, press it along `axis`."""
     obj = step.obs[4:7]
-    tcp = step.frame.tcp_center
-    tcp_to_obj = jnp.linalg.norm(obj - tcp)
+    tcp_to_obj = jnp.linalg.norm(obj - step.frame.tcp_center)
     # Quirk: the "initial" reach distance uses the current button position with the initial tcp.
     tcp_to_obj_init = jnp.linalg.norm(obj - step.constants["init_tcp"])
-    obj_to_target = jnp.abs(step.target_pos[2] - obj[2])
-    tcp_closed = 1.0 - step.obs[3]
-    near_button = tolerance(tcp_to_obj, bounds=(0.0, 0.01), margin=tcp_to_obj_init, sigmoid="long_tail")
+    obj_to_target = jnp.abs(step.target_pos[axis] - obj[axis])
+    near_button = tolerance(
+        tcp_to_obj, bounds=(0.0, near_radius), margin=tcp_to_obj_init, sigmoid="long_tail"
+    )
     button_pressed = tolerance(
         obj_to_target,
         bounds=(0.0, 0.005),
         margin=step.constants["obj_to_target_init"],
         sigmoid="long_tail",
     )
-    reward = 5.0 * hamacher_product(tcp_closed, near_button)
-    reward = jnp.where(tcp_to_obj <= 0.03, reward + 5.0 * button_pressed, reward)
+    return tcp_to_obj, obj_to_target, near_button, button_pressed
+
+
+def _button_info(
+    reward: Array, success_radius: float, terms: tuple[Array, Array, Array, Array]
+) -> tuple[Array, dict[str, Array]]:
+    tcp_to_obj, obj_to_target, near_button, button_pressed = terms
     return _info(
         reward,
-        success=obj_to_target <= 0.024,
+        success=obj_to_target <= success_radius,
         near_object=tcp_to_obj <= 0.05,
         grasp_reward=near_button,
         in_place_reward=button_pressed,
         obj_to_target=obj_to_target,
     )
+
+
+def _button_reach_press(
+    step: StepInputs,
+    axis: int,
+    near_radius: float,
+    tcp_closed: Array,
+    weights: tuple[float, float],
+    press_radius: float,
+    success_radius: float,
+) -> tuple[Array, dict[str, Array]]:
+    """`w0 * hamacher(tcp_closed, near_button)`, plus `w1 * button_pressed` once within reach."""
+    terms = _button_terms(step, axis, near_radius)
+    tcp_to_obj, _, near_button, button_pressed = terms
+    reward = weights[0] * hamacher_product(tcp_closed, near_button)
+    reward = jnp.where(tcp_to_obj <= press_radius, reward + weights[1] * button_pressed, reward)
+    return _button_info(reward, success_radius, terms)
+
+
+def button_press_topdown(step: StepInputs) -> tuple[Array, dict[str, Array]]:
+    return _button_reach_press(step, 2, 0.01, 1.0 - step.obs[3], (5.0, 5.0), 0.03, 0.024)
+
+
+def button_press_topdown_wall(step: StepInputs) -> tuple[Array, dict[str, Array]]:
+    # Quirk: the wall variant's "tcp_closed" is max(obs[3], 0) (the opening), topdown's 1 - obs[3].
+    return _button_reach_press(step, 2, 0.01, jnp.maximum(step.obs[3], 0.0), (5.0, 5.0), 0.03, 0.024)
+
+
+def button_press(step: StepInputs) -> tuple[Array, dict[str, Array]]:
+    # Quirk: "tcp_closed" is max(obs[3], 0), i.e. the gripper opening.
+    return _button_reach_press(step, 1, 0.05, jnp.maximum(step.obs[3], 0.0), (2.0, 8.0), 0.05, 0.02)
+
+
+def button_press_wall(step: StepInputs) -> tuple[Array, dict[str, Array]]:
+    terms = _button_terms(step, 1, 0.01)
+    tcp_to_obj, _, near_button, button_pressed = terms
+    far = 2.0 * hamacher_product((1.0 - step.obs[3]) / 2.0, near_button)
+    near = 2.0 + 2.0 * (1.0 + step.obs[3]) + 4.0 * button_pressed**2
+    reward = jnp.where(tcp_to_obj > 0.07, far, near)
+    return _button_info(reward, 0.03, terms)
 
 
 def _window(
@@ -528,3 +716,102 @@ def window_close(step: StepInputs) -> tuple[Array, dict[str, Array]]:
     target_to_obj_init = jnp.abs(step.constants["window_handle_pos_init"][0] - step.target_pos[0])
     # Quirk: window-close's reach term uses a gaussian sigmoid where window-open uses long_tail.
     return _window(step, "handleCloseStart", target_to_obj_init, reach_sigmoid="gaussian")
+
+
+# ---- handle press/pull (handles.py) ----------------------------------------------------------
+
+
+def handle_press(step: StepInputs) -> tuple[Array, dict[str, Array]]:
+    """handle-press-side (handle-press has the same code): reach the handle, push it down to the
+    goal's z."""
+    radius = 0.02  # the class's TARGET_RADIUS
+    obj = step.frame.site_pos("handleStart")
+    tcp = step.frame.tcp_center
+    target = step.target_pos
+    handle_init = step.constants["handle_init_pos"]
+    target_to_obj = jnp.abs(obj[2] - target[2])
+    target_to_obj_init = jnp.abs(handle_init[2] - target[2])
+    in_place = tolerance(
+        target_to_obj,
+        bounds=(0.0, radius),
+        margin=jnp.abs(target_to_obj_init - radius),
+        sigmoid="long_tail",
+    )
+    handle_radius = 0.02
+    tcp_to_obj = jnp.linalg.norm(obj - tcp)
+    tcp_to_obj_init = jnp.linalg.norm(handle_init - step.constants["init_tcp"])
+    reach = tolerance(
+        tcp_to_obj,
+        bounds=(0.0, handle_radius),
+        margin=jnp.abs(tcp_to_obj_init - handle_radius),
+        sigmoid="long_tail",
+    )
+    success = target_to_obj <= radius
+    reward = 10.0 * jnp.where(success, 1.0, hamacher_product(reach, in_place))
+    return _info(
+        reward,
+        success=success,
+        near_object=tcp_to_obj <= 0.05,
+        grasp_reward=reach,  # object_grasped = reach
+        in_place_reward=in_place,
+        obj_to_target=target_to_obj,
+    )
+
+
+def _handle_pull(
+    step: StepInputs,
+    target_to_obj: Array,
+    target_to_obj_init: Array,
+    pad_success_thresh: float,
+    obj_radius: float,
+    lift_axis: int,
+    success_radius: float,
+) -> tuple[Array, dict[str, Array]]:
+    """The shared V2 handle-pull reward: cage the handle, lift it to the goal."""
+    obj = step.obs[4:7]
+    tcp_opened = step.obs[3]
+    in_place = tolerance(
+        target_to_obj,
+        bounds=(0.0, TARGET_RADIUS),
+        margin=target_to_obj_init,
+        sigmoid="long_tail",
+    )
+    object_grasped = gripper_caging(
+        step,
+        obj,
+        pad_success_thresh=pad_success_thresh,
+        obj_radius=obj_radius,
+        object_reach_radius=0.01,
+        xz_thresh=0.01,
+        high_density=True,
+    )
+    reward = hamacher_product(object_grasped, in_place)
+    tcp_to_obj = jnp.linalg.norm(obj - step.frame.tcp_center)
+    lifted = (
+        (tcp_to_obj < 0.035) & (tcp_opened > 0) & (obj[lift_axis] - 0.01 > step.constants["obj_init_pos"][2])
+    )
+    reward = jnp.where(lifted, reward + 1.0 + 5.0 * in_place, reward)
+    reward = jnp.where(target_to_obj < TARGET_RADIUS, 10.0, reward)
+    return _info(
+        reward,
+        success=target_to_obj <= success_radius,
+        near_object=tcp_to_obj <= 0.05,
+        grasp_reward=object_grasped,
+        in_place_reward=in_place,
+        obj_to_target=target_to_obj,
+    )
+
+
+def handle_pull_side(step: StepInputs) -> tuple[Array, dict[str, Array]]:
+    obj, target = step.obs[4:7], step.target_pos
+    target_to_obj_init = jnp.linalg.norm(step.constants["obj_init_pos"] - target)
+    # Quirk: success is obj_to_target <= 0.08 while the reward's 10.0 needs < TARGET_RADIUS (0.05).
+    return _handle_pull(
+        step,
+        jnp.linalg.norm(obj - target),
+        target_to_obj_init,
+        pad_success_thresh=0.06,
+        obj_radius=0.032,
+        lift_axis=2,
+        success_radius=0.08,
+    )

@@ -24,6 +24,10 @@ def load(task: str) -> dict:
     return arrays
 
 
+def recorded_tasks() -> list[str]:
+    return sorted(p.stem for p in FIXTURES.glob("*-v3.npz"))
+
+
 def shape(task: str) -> tuple[int, int]:
     """(resets, steps) recorded for `task`."""
     return load(task)["action"].shape[:2]

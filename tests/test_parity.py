@@ -11,10 +11,14 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
-from reference import load, rand_vec_rows, replay_recorded_states, shape
+from reference import load, rand_vec_rows, recorded_tasks, replay_recorded_states, shape
 
 import mwjax
 from mwjax.benchmarks import MT10, sample_goal_variants
+from mwjax.tasks import TASKS
+
+# Every ported task that has a reference recording; MT10 must be among them.
+PORTED = [task for task in recorded_tasks() if task in TASKS]
 
 OBS_TOL = 1e-5
 REWARD_TOL = 1e-4
@@ -26,21 +30,31 @@ REWARD_PASS_FRACTION = 0.99
 # state it returns. Bound: the largest difference measured, rounded up.
 STALE_RESET_OBS = {"drawer-open-v3": 1e-3, "window-open-v3": 1e-3, "window-close-v3": 0.25}
 
+# In the sideways handle scene the reference's settled arm drifts with the reset history: its
+# fourth recorded reset starts 9e-6 rad and 2e-4 rad/s away from the first, whose settled state
+# mwjax ships. Rewards and success still match on every recorded step. (qpos, qvel) tolerances:
+HISTORY_DEPENDENT_SETTLE = {"handle-press-side-v3": (2e-5, 5e-4), "handle-pull-side-v3": (2e-5, 5e-4)}
+
 FREE_RUN_STEPS = 10
 # Warp's float32 solver vs the reference's float64 one, through 50 physics substeps.
 FREE_RUN_OBS_TOL = 5e-3
 
 
+def test_every_ported_task_is_recorded_and_covers_mt10():
+    assert set(MT10) <= set(PORTED)
+    assert set(PORTED) == set(TASKS), f"ported without a recording: {sorted(set(TASKS) - set(PORTED))}"
+
+
 @pytest.fixture(scope="module")
 def replay():
-    return replay_recorded_states(list(MT10))
+    return replay_recorded_states(PORTED)
 
 
 @pytest.fixture(scope="module")
 def free_run():
     """mwjax's own trajectory from each recorded reset, driven by the recorded actions."""
-    resets = shape(MT10[0])[0]
-    env = mwjax.make(list(MT10), envs_per_task=resets)
+    resets = shape(PORTED[0])[0]
+    env = mwjax.make(PORTED, envs_per_task=resets)
     state = jax.jit(env.reset_to)(jnp.asarray(rand_vec_rows(env, 1)))
     reset_state = state
     actions = np.concatenate([load(t)["action"][:, :FREE_RUN_STEPS] for t in env.task_list])
@@ -53,14 +67,14 @@ def free_run():
     return env, reset_state, {t: obs[env.task_rows(t)] for t in env.task_list}
 
 
-@pytest.mark.parametrize("task", MT10)
+@pytest.mark.parametrize("task", PORTED)
 def test_goal_variants_equal_reference(task):
     recorded = load(task)["rand_vec"]
     ours = sample_goal_variants([task], seed=load(task)["meta"]["seed"])[task][: len(recorded)]
     np.testing.assert_array_equal(ours, recorded)
 
 
-@pytest.mark.parametrize("task", MT10)
+@pytest.mark.parametrize("task", PORTED)
 def test_obs_given_state(task, replay):
     err = np.abs(replay.obs[task] - load(task)["obs"])
     assert err.max() < OBS_TOL, (
@@ -68,7 +82,7 @@ def test_obs_given_state(task, replay):
     )
 
 
-@pytest.mark.parametrize("task", MT10)
+@pytest.mark.parametrize("task", PORTED)
 def test_reward_v2_given_state(task, replay):
     ref = load(task)["reward_v2"]
     ok = np.abs(replay.reward[task] - ref) <= REWARD_TOL * np.maximum(1.0, np.abs(ref))
@@ -79,27 +93,28 @@ def test_reward_v2_given_state(task, replay):
     )
 
 
-@pytest.mark.parametrize("task", MT10)
+@pytest.mark.parametrize("task", PORTED)
 def test_success_given_state(task, replay):
     np.testing.assert_array_equal(replay.success[task], load(task)["success_v2"] > 0)
 
 
-@pytest.mark.parametrize("task", MT10)
+@pytest.mark.parametrize("task", PORTED)
 def test_reset_state(task, free_run):
     env, state, _ = free_run
     kin = env.kinematics(state, task)
-    np.testing.assert_allclose(np.asarray(kin.qpos), load(task)["reset_qpos"], atol=1e-6)
-    np.testing.assert_allclose(np.asarray(kin.qvel), load(task)["reset_qvel"], atol=1e-5, rtol=1e-6)
+    qpos_tol, qvel_tol = HISTORY_DEPENDENT_SETTLE.get(task, (1e-6, 1e-5))
+    np.testing.assert_allclose(np.asarray(kin.qpos), load(task)["reset_qpos"], atol=qpos_tol)
+    np.testing.assert_allclose(np.asarray(kin.qvel), load(task)["reset_qvel"], atol=qvel_tol, rtol=1e-6)
 
 
-@pytest.mark.parametrize("task", MT10)
+@pytest.mark.parametrize("task", PORTED)
 def test_reset_obs(task, free_run):
     env, state, _ = free_run
     err = np.abs(np.asarray(state.obs[env.task_rows(task)]) - load(task)["reset_obs"]).max()
     assert err < STALE_RESET_OBS.get(task, OBS_TOL), f"reset obs error {err:.3g}"
 
 
-@pytest.mark.parametrize("task", MT10)
+@pytest.mark.parametrize("task", PORTED)
 def test_free_running_drift(task, free_run):
     _, _, obs = free_run
     # The stacked previous frame is left out: at step 1 it is the reset frame (see test_reset_obs).

@@ -7,7 +7,7 @@ from collections.abc import Sequence
 import jax.numpy as jnp
 
 from mwjax import rewards_v2
-from mwjax.tasks.spec import Frame, PlaceFn, Placement, TaskSpec, quat_from_xmat
+from mwjax.tasks.spec import ConstantsFn, Frame, ObjectsFn, PlaceFn, Placement, TaskSpec, quat_from_xmat
 
 HAND_INIT = (0.0, 0.6, 0.2)
 
@@ -126,26 +126,49 @@ _DOOR_DRAWER_TASKS = (DOOR_OPEN, DRAWER_OPEN, DRAWER_CLOSE)
 
 # ---- button-press-topdown, window ---------------------------------------------------------------
 
-# These three tasks start the hand at y = 0.4 (the door/drawer tasks use 0.6).
+# These tasks start the hand at y = 0.4 (the door/drawer tasks use 0.6).
 _HAND_INIT_NEAR = (0.0, 0.4, 0.2)
 # window-open and window-close share their scene, so they list the same moved bodies.
 _WINDOW_MOVED = ("window",)
 
 
-def _button_topdown(frame: Frame) -> tuple[jnp.ndarray, jnp.ndarray]:
-    # The button body origin raised by 0.193 (the button top), with MuJoCo's xquat (w, x, y, z).
-    pos = frame.body_pos("button") + jnp.asarray((0.0, 0.0, 0.193))
-    return pos[None], frame.body_quat("button")[None]
+def _button_objects(offset: Sequence[float]) -> ObjectsFn:
+    """The button body origin shifted to its face (`offset`), with MuJoCo's xquat (w, x, y, z)."""
+
+    def objects(frame: Frame) -> tuple[jnp.ndarray, jnp.ndarray]:
+        pos = frame.body_pos("button") + jnp.asarray(offset)
+        return pos[None], frame.body_quat("button")[None]
+
+    return objects
 
 
-def _button_topdown_constants(frame: Frame, placement: Placement, settled: Frame) -> dict[str, jnp.ndarray]:
-    # Read after mj_forward on the moved box: the goal is the site "hole", not rand_vec.
-    target = frame.site_pos("hole")
-    return {
-        "target_pos": target,
-        "init_tcp": settled.tcp_center,
-        "obj_to_target_init": jnp.abs(target[2] - frame.site_pos("buttonStart")[2]),
-    }
+def _button_constants(axis: int) -> ConstantsFn:
+    """Read after mj_forward (or set_state) on the moved box: the goal is the site "hole", not
+    rand_vec, and the initial press distance is measured along the press `axis`."""
+
+    def constants(frame: Frame, placement: Placement, settled: Frame) -> dict[str, jnp.ndarray]:
+        target = frame.site_pos("hole")
+        return {
+            "target_pos": target,
+            "init_tcp": settled.tcp_center,
+            "obj_to_target_init": jnp.abs(target[axis] - frame.site_pos("buttonStart")[axis]),
+        }
+
+    return constants
+
+
+# Top-down buttons are pressed along z (face 0.193 above the body), front buttons along y.
+_button_topdown = _button_objects((0.0, 0.0, 0.193))
+_button_front = _button_objects((0.0, -0.193, 0.0))
+_button_topdown_constants = _button_constants(2)
+_button_front_constants = _button_constants(1)
+# The top-down tasks move only the box (mj_forward, no joint write): the button keeps its settled
+# joint state. The goal placed here is replaced by the "hole" site in constants.
+_place_button_topdown = place_fixture("box", (0.0, 0.0, 0.0))
+# The front tasks' _set_obj_xyz(0) writes the button joint (qpos[9]) and zeroes its qvel.
+_place_button_front = place_fixture(
+    "box", (0.0, 0.0, 0.0), joint="btnbox_joint", joint_pos=0.0, zero_joint_qvel=True
+)
 
 
 def _stale_window_site(frame: Frame, settled: Frame, site: str) -> jnp.ndarray:
@@ -191,9 +214,7 @@ BUTTON_PRESS_TOPDOWN = TaskSpec(
     hand_init_pos=_HAND_INIT_NEAR,
     random_low=(-0.1, 0.8, 0.115),
     random_high=(0.1, 0.9, 0.115),
-    # Only the box moves; the button keeps its settled joint state. The goal placed here is
-    # replaced by the "hole" site in constants.
-    place=place_fixture("box", (0.0, 0.0, 0.0)),
+    place=_place_button_topdown,
     constants=_button_topdown_constants,
     objects=_button_topdown,
     reward_v2=rewards_v2.button_press_topdown,
@@ -228,6 +249,52 @@ WINDOW_CLOSE = TaskSpec(
     moved_bodies=_WINDOW_MOVED,
 )
 
-_BUTTON_WINDOW_TASKS = (BUTTON_PRESS_TOPDOWN, WINDOW_OPEN, WINDOW_CLOSE)
+BUTTON_PRESS_TOPDOWN_WALL = TaskSpec(
+    name="button-press-topdown-wall-v3",
+    scene="sawyer_button_press_topdown_wall.xml",
+    hand_init_pos=_HAND_INIT_NEAR,
+    random_low=(-0.1, 0.8, 0.115),
+    random_high=(0.1, 0.9, 0.115),
+    place=_place_button_topdown,
+    constants=_button_topdown_constants,
+    objects=_button_topdown,
+    reward_v2=rewards_v2.button_press_topdown_wall,
+    moved_bodies=("box",),
+)
+
+BUTTON_PRESS = TaskSpec(
+    name="button-press-v3",
+    scene="sawyer_button_press.xml",
+    hand_init_pos=_HAND_INIT_NEAR,
+    random_low=(-0.1, 0.85, 0.115),
+    random_high=(0.1, 0.9, 0.115),
+    place=_place_button_front,
+    constants=_button_front_constants,
+    objects=_button_front,
+    reward_v2=rewards_v2.button_press,
+    moved_bodies=("box",),
+)
+
+BUTTON_PRESS_WALL = TaskSpec(
+    name="button-press-wall-v3",
+    scene="sawyer_button_press_wall.xml",
+    hand_init_pos=_HAND_INIT_NEAR,
+    random_low=(-0.05, 0.85, 0.1149),
+    random_high=(0.05, 0.9, 0.1151),
+    place=_place_button_front,
+    constants=_button_front_constants,
+    objects=_button_front,
+    reward_v2=rewards_v2.button_press_wall,
+    moved_bodies=("box",),
+)
+
+_BUTTON_WINDOW_TASKS = (
+    BUTTON_PRESS_TOPDOWN,
+    WINDOW_OPEN,
+    WINDOW_CLOSE,
+    BUTTON_PRESS_TOPDOWN_WALL,
+    BUTTON_PRESS,
+    BUTTON_PRESS_WALL,
+)
 
 TASKS: tuple[TaskSpec, ...] = (*_DOOR_DRAWER_TASKS, *_BUTTON_WINDOW_TASKS)

@@ -13,6 +13,11 @@ def _puck(frame: Frame) -> tuple[jnp.ndarray, jnp.ndarray]:
     return frame.body_pos("obj")[None], quat_from_xmat(frame.geom_xmat("objGeom"))[None]
 
 
+def _puck_geom(frame: Frame) -> tuple[jnp.ndarray, jnp.ndarray]:
+    """The wall and push-back variants report the puck geom's position, not the body origin."""
+    return frame.geom_pos("objGeom")[None], quat_from_xmat(frame.geom_xmat("objGeom"))[None]
+
+
 def _goal_apart(vec: np.ndarray) -> bool:
     """The reference redraws until object and goal are at least 15 cm apart in the plane."""
     return bool(np.linalg.norm(vec[:2] - vec[3:5]) >= 0.15)
@@ -45,6 +50,15 @@ def _place_push(rand_vec: jnp.ndarray, settled: Frame) -> Placement:
     obj_init_pos = jnp.concatenate([rand_vec[:2], puck_z[None]])
     qpos, qvel = set_object_xyz(settled, obj_init_pos)
     return Placement(qpos=qpos, qvel=qvel, target_pos=jnp.concatenate([rand_vec[3:5], puck_z[None]]))
+
+
+def _place_push_geom_z(rand_vec: jnp.ndarray, settled: Frame) -> Placement:
+    # Quirk: both heights are `adjust_initObjPos`'s z, the puck geom z of the settled (one
+    # substep stale) state; rand_vec's object and goal z are ignored.
+    geom_z = settled.geom_pos("objGeom")[2]
+    obj_init_pos = jnp.concatenate([rand_vec[:2], geom_z[None]])
+    qpos, qvel = set_object_xyz(settled, obj_init_pos)
+    return Placement(qpos=qpos, qvel=qvel, target_pos=jnp.concatenate([rand_vec[3:5], geom_z[None]]))
 
 
 REACH = TaskSpec(
@@ -93,4 +107,64 @@ PICK_PLACE = TaskSpec(
     rand_vec_valid=_goal_apart,
 )
 
-TASKS = (REACH, PUSH, PICK_PLACE)
+REACH_WALL = TaskSpec(
+    name="reach-wall-v3",
+    scene="sawyer_reach_wall_v3.xml",
+    hand_init_pos=(0.0, 0.6, 0.2),
+    random_low=(-0.05, 0.6, 0.015, -0.05, 0.85, 0.05),
+    random_high=(0.05, 0.65, 0.015, 0.05, 0.9, 0.3),
+    goal_low=(-0.05, 0.85, 0.05),
+    goal_high=(0.05, 0.9, 0.3),
+    place=_place_reach,
+    constants=_reach_constants,
+    objects=_puck,
+    reward_v2=rewards_v2.reach_wall,
+    rand_vec_valid=_goal_apart,
+)
+
+PUSH_WALL = TaskSpec(
+    name="push-wall-v3",
+    scene="sawyer_push_wall_v3.xml",
+    hand_init_pos=(0.0, 0.6, 0.2),
+    random_low=(-0.05, 0.6, 0.015, -0.05, 0.85, 0.01),
+    random_high=(0.05, 0.65, 0.015, 0.05, 0.9, 0.02),
+    goal_low=(-0.05, 0.85, 0.01),
+    goal_high=(0.05, 0.9, 0.02),
+    place=_place_push_geom_z,
+    constants=_puck_constants,
+    objects=_puck_geom,
+    reward_v2=rewards_v2.push_wall,
+    rand_vec_valid=_goal_apart,
+)
+
+PICK_PLACE_WALL = TaskSpec(
+    name="pick-place-wall-v3",
+    scene="sawyer_pick_place_wall_v3.xml",
+    hand_init_pos=(0.0, 0.6, 0.2),
+    random_low=(-0.05, 0.6, 0.015, -0.05, 0.85, 0.05),
+    random_high=(0.05, 0.65, 0.015, 0.05, 0.9, 0.3),
+    goal_low=(-0.05, 0.85, 0.05),
+    goal_high=(0.05, 0.9, 0.3),
+    place=_place_pick_place,
+    constants=_puck_constants,
+    objects=_puck_geom,
+    reward_v2=rewards_v2.pick_place_wall,
+    rand_vec_valid=_goal_apart,
+)
+
+PUSH_BACK = TaskSpec(
+    name="push-back-v3",
+    scene="sawyer_push_back_v3.xml",
+    hand_init_pos=(0.0, 0.6, 0.2),
+    random_low=(-0.1, 0.8, 0.02, -0.1, 0.6, 0.0199),
+    random_high=(0.1, 0.85, 0.02, 0.1, 0.7, 0.0201),
+    goal_low=(-0.1, 0.6, 0.0199),
+    goal_high=(0.1, 0.7, 0.0201),
+    place=_place_push_geom_z,
+    constants=_puck_constants,
+    objects=_puck_geom,
+    reward_v2=rewards_v2.push_back,
+    rand_vec_valid=_goal_apart,
+)
+
+TASKS = (REACH, PUSH, PICK_PLACE, REACH_WALL, PUSH_WALL, PICK_PLACE_WALL, PUSH_BACK)

@@ -815,3 +815,219 @@ def handle_pull_side(step: StepInputs) -> tuple[Array, dict[str, Array]]:
         lift_axis=2,
         success_radius=0.08,
     )
+
+
+# ---- faucet, dial (rotary.py) ----------------------------------------------------------------
+
+
+def _faucet(step: StepInputs, obj: Array) -> tuple[Array, dict[str, Array]]:
+    """The shared V2 faucet reward: reach the handle (gaussian), turn it to the goal."""
+    radius = 0.07  # the class's _target_radius
+    tcp = step.frame.tcp_center
+    target = step.target_pos
+    obj_init = step.constants["obj_init_pos"]
+    target_to_obj = jnp.linalg.norm(obj - target)
+    # Quirk: the initial distance is from the faucet base (obj_init_pos), not the handle.
+    target_to_obj_init = jnp.linalg.norm(obj_init - target)
+    in_place = tolerance(
+        target_to_obj,
+        bounds=(0.0, radius),
+        margin=jnp.abs(target_to_obj_init - radius),
+        sigmoid="long_tail",
+    )
+    reach_radius = 0.01
+    tcp_to_obj = jnp.linalg.norm(obj - tcp)
+    tcp_to_obj_init = jnp.linalg.norm(obj_init - step.constants["init_tcp"])
+    reach = tolerance(
+        tcp_to_obj,
+        bounds=(0.0, reach_radius),
+        margin=jnp.abs(tcp_to_obj_init - reach_radius),
+        sigmoid="gaussian",
+    )
+    success = target_to_obj <= radius
+    reward = jnp.where(success, 10.0, 2.0 * (2.0 * reach + 3.0 * in_place))
+    return _info(
+        reward,
+        success=success,
+        near_object=tcp_to_obj <= 0.01,
+        grasp_reward=reach,  # object_grasped = reach
+        in_place_reward=in_place,
+        obj_to_target=target_to_obj,
+    )
+
+
+def faucet_open(step: StepInputs) -> tuple[Array, dict[str, Array]]:
+    # Quirk: faucet-open shifts the observed handle by (-0.04, 0, 0.03); faucet-close does not.
+    return _faucet(step, step.obs[4:7] + jnp.array([-0.04, 0.0, 0.03]))
+
+
+def faucet_close(step: StepInputs) -> tuple[Array, dict[str, Array]]:
+    return _faucet(step, step.obs[4:7])
+
+
+def dial_turn(step: StepInputs) -> tuple[Array, dict[str, Array]]:
+    """`SawyerDialTurnEnvV3.compute_reward` (v2): reach above the dial rim with the gripper
+    closed, turn the rim point to the goal."""
+    radius = 0.07  # TARGET_RADIUS
+    frame = step.frame
+    angle = frame.joint_qpos("knob_Joint_1")
+    obj = frame.body_pos("dial") + 0.05 * jnp.stack([jnp.sin(angle), -jnp.cos(angle), 0.0 * angle])
+    push_position = obj + jnp.array([0.05, 0.02, 0.09])
+    push_init = step.constants["dial_push_position"]
+    target = step.target_pos
+    target_to_obj = jnp.linalg.norm(obj - target)
+    # Quirk: the initial distance is from the push position (above the rim), not the rim point.
+    target_to_obj_init = jnp.linalg.norm(push_init - target)
+    in_place = tolerance(
+        target_to_obj,
+        bounds=(0.0, radius),
+        margin=jnp.abs(target_to_obj_init - radius),
+        sigmoid="long_tail",
+    )
+    reach_radius = 0.005
+    tcp = frame.tcp_center
+    tcp_to_obj = jnp.linalg.norm(push_position - tcp)
+    tcp_to_obj_init = jnp.linalg.norm(push_init - step.constants["init_tcp"])
+    reach = tolerance(
+        tcp_to_obj,
+        bounds=(0.0, reach_radius),
+        margin=jnp.abs(tcp_to_obj_init - reach_radius),
+        sigmoid="gaussian",
+    )
+    gripper_closed = jnp.minimum(jnp.maximum(0.0, step.action[-1]), 1.0)
+    reach = hamacher_product(reach, gripper_closed)
+    reward = 10.0 * hamacher_product(reach, in_place)
+    return _info(
+        reward,
+        success=target_to_obj <= radius,
+        near_object=tcp_to_obj <= 0.01,
+        grasp_reward=reach,
+        in_place_reward=in_place,
+        obj_to_target=target_to_obj,
+    )
+
+
+# ---- plate slide (plate_slide.py) ------------------------------------------------------------
+
+
+def _plate_terms(step: StepInputs, margin_offset: float) -> tuple[Array, Array, Array, Array, Array]:
+    """Distances and tolerance terms every plate-slide variant shares; the side and back variants
+    shrink both margins by TARGET_RADIUS (`margin_offset`)."""
+    obj, target, tcp = step.obs[4:7], step.target_pos, step.frame.tcp_center
+    obj_init_pos, init_tcp = step.constants["obj_init_pos"], step.constants["init_tcp"]
+    obj_to_target = jnp.linalg.norm(obj - target)
+    in_place = tolerance(
+        obj_to_target,
+        bounds=(0.0, TARGET_RADIUS),
+        margin=jnp.linalg.norm(obj_init_pos - target) - margin_offset,
+        sigmoid="long_tail",
+    )
+    tcp_to_obj = jnp.linalg.norm(tcp - obj)
+    object_grasped = tolerance(
+        tcp_to_obj,
+        bounds=(0.0, TARGET_RADIUS),
+        margin=jnp.linalg.norm(init_tcp - obj_init_pos) - margin_offset,
+        sigmoid="long_tail",
+    )
+    return obj_to_target, in_place, tcp_to_obj, object_grasped, tcp
+
+
+def _plate_info(
+    reward: Array, obj_to_target: Array, in_place: Array, tcp_to_obj: Array, object_grasped: Array
+) -> tuple[Array, dict[str, Array]]:
+    reward = jnp.where(obj_to_target < TARGET_RADIUS, 10.0, reward)
+    # Quirk: success is obj_to_target <= 0.07 while the reward's 10.0 needs < TARGET_RADIUS.
+    return _info(
+        reward,
+        success=obj_to_target <= 0.07,
+        near_object=tcp_to_obj <= 0.03,
+        grasp_reward=object_grasped,
+        in_place_reward=in_place,
+        obj_to_target=obj_to_target,
+    )
+
+
+def plate_slide(step: StepInputs) -> tuple[Array, dict[str, Array]]:
+    obj_to_target, in_place, tcp_to_obj, object_grasped, _ = _plate_terms(step, 0.0)
+    reward = 8.0 * hamacher_product(object_grasped, in_place)
+    return _plate_info(reward, obj_to_target, in_place, tcp_to_obj, object_grasped)
+
+
+def plate_slide_side(step: StepInputs) -> tuple[Array, dict[str, Array]]:
+    """plate-slide-side, -back and -back-side: reach reward, then 2 + 7 * in_place once the tcp is
+    low and near the plate."""
+    obj_to_target, in_place, tcp_to_obj, object_grasped, tcp = _plate_terms(step, TARGET_RADIUS)
+    reward = jnp.where((tcp[2] <= 0.03) & (tcp_to_obj < 0.07), 2.0 + 7.0 * in_place, 1.5 * object_grasped)
+    return _plate_info(reward, obj_to_target, in_place, tcp_to_obj, object_grasped)
+
+
+# ---- sweep, sweep-into (reach_push_pick_place.py) ----------------------------------------------
+
+
+def _sweep_caging(
+    step: StepInputs, obj_pos: Array, grip_success_margin: float, x_z_success_margin: float
+) -> Array:
+    """sweep's and sweep-into's own `_gripper_caging_reward` override (obj_radius 0.02).
+
+    Reference quirk reproduced: `init_left_pad`/`init_right_pad` are live views into
+    `data.xpos`, so the margins are measured from the current pads.
+    """
+    frame = step.frame
+    obj_radius, pad_success_margin = 0.02, 0.05
+    left_pad, right_pad = frame.left_pad, frame.right_pad
+    delta_right = obj_pos[1] - right_pad[1]
+    delta_left = left_pad[1] - obj_pos[1]
+    right_margin = jnp.abs(jnp.abs(obj_pos[1] - right_pad[1]) - pad_success_margin)
+    left_margin = jnp.abs(jnp.abs(obj_pos[1] - left_pad[1]) - pad_success_margin)
+
+    def pads(upper: float) -> Array:
+        right = tolerance(delta_right, bounds=(obj_radius, upper), margin=right_margin, sigmoid="long_tail")
+        left = tolerance(delta_left, bounds=(obj_radius, upper), margin=left_margin, sigmoid="long_tail")
+        return hamacher_product(right, left)
+
+    y_caging, y_gripping = pads(pad_success_margin), pads(grip_success_margin)
+    xz = jnp.array([0, 2])
+    obj_init_pos, init_tcp = step.constants["obj_init_pos"], step.constants["init_tcp"]
+    tcp_obj_xz = jnp.linalg.norm(frame.tcp_center[xz] - obj_pos[xz])
+    xz_margin = jnp.linalg.norm(obj_init_pos[xz] - init_tcp[xz]) - x_z_success_margin
+    x_z_caging = tolerance(
+        tcp_obj_xz, bounds=(0.0, x_z_success_margin), margin=xz_margin, sigmoid="long_tail"
+    )
+    caging = hamacher_product(y_caging, x_z_caging)
+    gripping = jnp.where(caging > 0.95, y_gripping, 0.0)
+    return (caging + gripping) / 2
+
+
+def _sweep_reward(
+    step: StepInputs, target: Array, grip_success_margin: float, x_z_success_margin: float
+) -> tuple[Array, dict[str, Array]]:
+    obj = step.obs[4:7]
+    obj_to_target = jnp.linalg.norm(obj - target)
+    tcp_to_obj = jnp.linalg.norm(obj - step.frame.tcp_center)
+    in_place = tolerance(
+        obj_to_target,
+        bounds=(0.0, TARGET_RADIUS),
+        margin=jnp.linalg.norm(step.constants["obj_init_pos"] - target),
+        sigmoid="long_tail",
+    )
+    object_grasped = _sweep_caging(step, obj, grip_success_margin, x_z_success_margin)
+    reward = 2.0 * object_grasped + 6.0 * hamacher_product(object_grasped, in_place)
+    reward = jnp.where(obj_to_target < TARGET_RADIUS, 10.0, reward)
+    return _info(
+        reward,
+        success=obj_to_target <= 0.05,
+        near_object=tcp_to_obj <= 0.03,
+        grasp_reward=object_grasped,
+        in_place_reward=in_place,
+        obj_to_target=obj_to_target,
+    )
+
+
+def sweep(step: StepInputs) -> tuple[Array, dict[str, Array]]:
+    return _sweep_reward(step, step.target_pos, grip_success_margin=0.03, x_z_success_margin=0.005)
+
+
+def sweep_into(step: StepInputs) -> tuple[Array, dict[str, Array]]:
+    # The target's z follows the puck (so only x and y count), margin included.
+    target = jnp.stack([step.target_pos[0], step.target_pos[1], step.obs[6]])
+    return _sweep_reward(step, target, grip_success_margin=0.025, x_z_success_margin=0.01)

@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
-from mwjax.tasks import articulated, handles, peg, reach_push_pick_place
+from mwjax.tasks import articulated, handles, peg, plate_slide, reach_push_pick_place, rotary
 from mwjax.tasks.spec import TaskSpec
 
 TASKS: dict[str, TaskSpec] = {
-    spec.name: spec for family in (reach_push_pick_place, articulated, peg, handles) for spec in family.TASKS
+    spec.name: spec
+    for family in (reach_push_pick_place, articulated, peg, handles, rotary, plate_slide)
+    for spec in family.TASKS
 }
 
 

@@ -167,4 +167,73 @@ PUSH_BACK = TaskSpec(
     rand_vec_valid=_goal_apart,
 )
 
-TASKS = (REACH, PUSH, PICK_PLACE, REACH_WALL, PUSH_WALL, PICK_PLACE_WALL, PUSH_BACK)
+
+def _puck_body(frame: Frame) -> tuple[jnp.ndarray, jnp.ndarray]:
+    """sweep reports the puck body's own `xquat` (w, x, y, z)."""
+    return frame.body_pos("obj")[None], frame.body_quat("obj")[None]
+
+
+def _place_sweep(rand_vec: jnp.ndarray, settled: Frame) -> Placement:
+    # The puck z is init_config's 0.02; the goal is the fixed (0.5, ., 0.01) with rand_vec's y.
+    obj_init_pos = jnp.concatenate([rand_vec[:2], jnp.array([0.02], rand_vec.dtype)])
+    qpos, qvel = set_object_xyz(settled, obj_init_pos)
+    target_pos = jnp.stack([jnp.asarray(0.5, rand_vec.dtype), rand_vec[1], jnp.asarray(0.01, rand_vec.dtype)])
+    return Placement(qpos=qpos, qvel=qvel, target_pos=target_pos)
+
+
+_SWEEP_INTO_GOAL = (0.0, 0.84, 0.02)
+
+
+def _place_sweep_into(rand_vec: jnp.ndarray, settled: Frame) -> Placement:
+    # Quirk: the puck z is the settled (one substep stale) puck body z; the goal is the fixed
+    # `self.goal`, rand_vec's goal half is ignored.
+    obj_init_pos = jnp.concatenate([rand_vec[:2], settled.body_pos("obj")[2][None]])
+    qpos, qvel = set_object_xyz(settled, obj_init_pos)
+    return Placement(qpos=qpos, qvel=qvel, target_pos=jnp.asarray(_SWEEP_INTO_GOAL, rand_vec.dtype))
+
+
+def _away_from_sweep_into_goal(vec: np.ndarray) -> bool:
+    """The reference redraws until the puck is at least 15 cm from the fixed goal in the plane."""
+    return bool(np.linalg.norm(vec[:2] - np.asarray(_SWEEP_INTO_GOAL[:2])) >= 0.15)
+
+
+SWEEP = TaskSpec(
+    name="sweep-v3",
+    scene="sawyer_sweep_v3.xml",
+    hand_init_pos=(0.0, 0.6, 0.2),
+    random_low=(-0.1, 0.6, 0.02),
+    random_high=(0.1, 0.7, 0.02),
+    goal_low=(0.49, 0.6, 0.0),
+    goal_high=(0.51, 0.7, 0.02),
+    place=_place_sweep,
+    constants=_puck_constants,
+    objects=_puck_body,
+    reward_v2=rewards_v2.sweep,
+)
+
+SWEEP_INTO = TaskSpec(
+    name="sweep-into-v3",
+    scene="sawyer_table_with_hole.xml",
+    hand_init_pos=(0.0, 0.6, 0.2),
+    random_low=(-0.1, 0.6, 0.02, -0.001, 0.8399, 0.0199),
+    random_high=(0.1, 0.7, 0.02, 0.001, 0.8401, 0.0201),
+    goal_low=(-0.001, 0.8399, 0.0199),
+    goal_high=(0.001, 0.8401, 0.0201),
+    place=_place_sweep_into,
+    constants=_puck_constants,
+    objects=_puck,
+    reward_v2=rewards_v2.sweep_into,
+    rand_vec_valid=_away_from_sweep_into_goal,
+)
+
+TASKS = (
+    REACH,
+    PUSH,
+    PICK_PLACE,
+    REACH_WALL,
+    PUSH_WALL,
+    PICK_PLACE_WALL,
+    PUSH_BACK,
+    SWEEP,
+    SWEEP_INTO,
+)

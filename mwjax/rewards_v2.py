@@ -361,15 +361,21 @@ def pick_place_wall(step: StepInputs) -> tuple[Array, dict[str, Array]]:
     return _around_wall(step, midpoint, jnp.array([1.0, 1.0, 3.0]), pick=True)
 
 
-def _push_back_caging(step: StepInputs, obj_pos: Array, obj_radius: float) -> Array:
-    """push-back's own `_gripper_caging_reward` override: y caging and y gripping from the pads.
+def _pad_gripping_caging(
+    step: StepInputs,
+    obj_pos: Array,
+    obj_radius: float,
+    grip_success_margin: float,
+    x_z_success_margin: float,
+) -> Array:
+    """The `_gripper_caging_reward` override of push-back, sweep and sweep-into: y caging, and
+    y gripping from the pads instead of the gripper command.
 
     Reference quirk reproduced: `init_left_pad`/`init_right_pad` are live views into
     `data.xpos`, so the margins are measured from the current pads.
     """
     frame = step.frame
-    pad_success_margin, x_z_success_margin = 0.05, 0.01
-    grip_success_margin = obj_radius + 0.003
+    pad_success_margin = 0.05
     left_pad, right_pad = frame.left_pad, frame.right_pad
     delta_right = obj_pos[1] - right_pad[1]
     delta_left = left_pad[1] - obj_pos[1]
@@ -404,7 +410,9 @@ def push_back(step: StepInputs) -> tuple[Array, dict[str, Array]]:
     in_place = tolerance(
         target_to_obj, bounds=(0.0, TARGET_RADIUS), margin=target_to_obj_init, sigmoid="long_tail"
     )
-    object_grasped = _push_back_caging(step, obj, obj_radius=0.007)
+    object_grasped = _pad_gripping_caging(
+        step, obj, obj_radius=0.007, grip_success_margin=0.007 + 0.003, x_z_success_margin=0.01
+    )
     reward = hamacher_product(object_grasped, in_place)
     pushing = (tcp_to_obj < 0.01) & (0 < tcp_opened) & (tcp_opened < 0.55)
     pushing = pushing & (target_to_obj_init - target_to_obj > 0.01)
@@ -964,40 +972,6 @@ def plate_slide_side(step: StepInputs) -> tuple[Array, dict[str, Array]]:
 # ---- sweep, sweep-into (reach_push_pick_place.py) ----------------------------------------------
 
 
-def _sweep_caging(
-    step: StepInputs, obj_pos: Array, grip_success_margin: float, x_z_success_margin: float
-) -> Array:
-    """sweep's and sweep-into's own `_gripper_caging_reward` override (obj_radius 0.02).
-
-    Reference quirk reproduced: `init_left_pad`/`init_right_pad` are live views into
-    `data.xpos`, so the margins are measured from the current pads.
-    """
-    frame = step.frame
-    obj_radius, pad_success_margin = 0.02, 0.05
-    left_pad, right_pad = frame.left_pad, frame.right_pad
-    delta_right = obj_pos[1] - right_pad[1]
-    delta_left = left_pad[1] - obj_pos[1]
-    right_margin = jnp.abs(jnp.abs(obj_pos[1] - right_pad[1]) - pad_success_margin)
-    left_margin = jnp.abs(jnp.abs(obj_pos[1] - left_pad[1]) - pad_success_margin)
-
-    def pads(upper: float) -> Array:
-        right = tolerance(delta_right, bounds=(obj_radius, upper), margin=right_margin, sigmoid="long_tail")
-        left = tolerance(delta_left, bounds=(obj_radius, upper), margin=left_margin, sigmoid="long_tail")
-        return hamacher_product(right, left)
-
-    y_caging, y_gripping = pads(pad_success_margin), pads(grip_success_margin)
-    xz = jnp.array([0, 2])
-    obj_init_pos, init_tcp = step.constants["obj_init_pos"], step.constants["init_tcp"]
-    tcp_obj_xz = jnp.linalg.norm(frame.tcp_center[xz] - obj_pos[xz])
-    xz_margin = jnp.linalg.norm(obj_init_pos[xz] - init_tcp[xz]) - x_z_success_margin
-    x_z_caging = tolerance(
-        tcp_obj_xz, bounds=(0.0, x_z_success_margin), margin=xz_margin, sigmoid="long_tail"
-    )
-    caging = hamacher_product(y_caging, x_z_caging)
-    gripping = jnp.where(caging > 0.95, y_gripping, 0.0)
-    return (caging + gripping) / 2
-
-
 def _sweep_reward(
     step: StepInputs, target: Array, grip_success_margin: float, x_z_success_margin: float
 ) -> tuple[Array, dict[str, Array]]:
@@ -1010,7 +984,7 @@ def _sweep_reward(
         margin=jnp.linalg.norm(step.constants["obj_init_pos"] - target),
         sigmoid="long_tail",
     )
-    object_grasped = _sweep_caging(step, obj, grip_success_margin, x_z_success_margin)
+    object_grasped = _pad_gripping_caging(step, obj, 0.02, grip_success_margin, x_z_success_margin)
     reward = 2.0 * object_grasped + 6.0 * hamacher_product(object_grasped, in_place)
     reward = jnp.where(obj_to_target < TARGET_RADIUS, 10.0, reward)
     return _info(

@@ -93,8 +93,8 @@ class Env:
         autoreset: bool = True,
         physics: PhysicsConfig | None = None,
     ) -> None:
-        if reward_version != "v2":
-            raise ValueError(f"reward_version must be 'v2' (v1 is not ported yet), got {reward_version!r}")
+        if reward_version not in ("v1", "v2"):
+            raise ValueError(f"reward_version must be 'v1' or 'v2', got {reward_version!r}")
         if not isinstance(envs_per_task, int) or envs_per_task < 1:
             raise ValueError(f"envs_per_task must be a positive int, got {envs_per_task!r}")
         if max_episode_steps < 1:
@@ -107,6 +107,8 @@ class Env:
         self.envs_per_task = envs_per_task
 
         specs = [get_task(name) for name in names]
+        if reward_version == "v1" and (missing := [s.name for s in specs if s.reward_v1 is None]):
+            raise ValueError(f"no V1 reward ported yet for {missing}")
         scenes = list(dict.fromkeys(spec.scene for spec in specs))
         ordered = [spec for scene in scenes for spec in specs if spec.scene == scene]
         group_specs = [[s for s in ordered if s.scene == scene] for scene in scenes]
@@ -121,6 +123,9 @@ class Env:
             ],
             physics or PhysicsConfig(),
         )
+        for members in group_specs:
+            if len({s.reset_env_steps for s in members if s.reset_env_steps}) > 1:
+                raise ValueError(f"tasks of scene {members[0].scene} step different counts at reset")
         rows: list[_TaskRows] = []
         for g, members in enumerate(group_specs):
             for k, spec in enumerate(members):
@@ -210,9 +215,11 @@ class Env:
     def observe(self, state: State, action: Array) -> State:
         """Observation, reward and success of the current physics state, as the reference computes
         them after a step with `action`; `state.obs[:, :18]` is taken as the previous frame."""
-        obs, reward, info = self._observe_and_reward(self._kinematics(state.physics), state, action)
+        obs, reward, info, constants = self._observe_and_reward(
+            self._kinematics(state.physics), state, action
+        )
         info["invalid_action"] = state.info["invalid_action"]
-        return dataclasses.replace(state, obs=obs, reward=reward, info=info)
+        return dataclasses.replace(state, obs=obs, reward=reward, info=info, constants=constants)
 
     def step(self, state: State, action: Array) -> State:
         """One env step for the whole batch (5 physics steps), with rewards and autoreset."""
@@ -222,7 +229,7 @@ class Env:
 
         datas = self.physics.step(self._apply_action(state.physics, action))
         kin = self._kinematics(datas)
-        obs, reward, info = self._observe_and_reward(kin, state, action)
+        obs, reward, info, constants = self._observe_and_reward(kin, state, action)
         info["invalid_action"] = ~valid
         steps = state.steps + 1
         truncated = steps >= self.max_episode_steps
@@ -236,6 +243,7 @@ class Env:
             truncated=truncated,
             info=info,
             steps=steps,
+            constants=constants,
         )
         done = terminated | truncated
         if not self.autoreset:
@@ -261,20 +269,11 @@ class Env:
 
     def _reset_rows(self, datas: tuple[mjx.Data, ...], rand_vecs: Array, keys: Array, done: Array) -> State:
         """Fresh episodes in the rows where `done`; the other rows' physics is kept as is."""
-        placements = []
+        placements: list[Placement] = []
         new_datas = list(datas)
-        for g, group in enumerate(self.physics.groups):
-            members = [r for r in self._rows if r.group == g]
-            parts = []
-            for rows in members:
-                vecs = rand_vecs[rows.start : rows.start + rows.size, : len(rows.spec.random_low)]
-                settled_frame = Frame(group.model, rows.settled)
-                placement = jax.vmap(lambda v, s=settled_frame, f=rows.spec.place: f(v, s))(vecs)
-                placements.append(placement)
-                parts.append((rows, placement))
-            new_datas[g] = self._placed_data(
-                datas[g], group, parts, done[group.start : group.start + group.size]
-            )
+        for g in range(len(self.physics.groups)):
+            new_datas[g], group_placements = self._reset_group(g, datas[g], rand_vecs, done)
+            placements.extend(group_placements)
         datas = self.physics.kinematics(tuple(new_datas))
         kin = self._kinematics(datas)
 
@@ -320,6 +319,47 @@ class Env:
             constants=_merge_constants(constant_parts, [r.size for r in self._rows]),
             key=keys,
         )
+
+    def _reset_group(
+        self, g: int, data: mjx.Data, rand_vecs: Array, done: Array
+    ) -> tuple[mjx.Data, list[Placement]]:
+        """Group `g`'s data with its `done` rows placed, and each member task's placements."""
+        group = self.physics.groups[g]
+        members = [r for r in self._rows if r.group == g]
+        group_done = done[group.start : group.start + group.size]
+        vecs = [rand_vecs[r.start : r.start + r.size, : len(r.spec.random_low)] for r in members]
+        settled = [
+            jax.tree.map(lambda x, n=r.size: jnp.broadcast_to(x, (n, *x.shape)), r.settled) for r in members
+        ]
+        placements = [
+            _place(r.spec, group.model, v, k) for r, v, k in zip(members, vecs, settled, strict=True)
+        ]
+        steps = max(r.spec.reset_env_steps for r in members)
+        if steps == 0:
+            return self._placed_data(
+                data, group, list(zip(members, placements, strict=True)), group_done
+            ), placements
+
+        # The reference steps the physics after moving fixed bodies but before writing joints:
+        # move the bodies only, step, then place again on the stepped state.
+        stepping = [r.spec.reset_env_steps > 0 for r in members]
+        bodies_only = [
+            dataclasses.replace(p, qpos=k.qpos, qvel=k.qvel) if s else p
+            for p, k, s in zip(placements, settled, stepping, strict=True)
+        ]
+        pre = self._placed_data(data, group, list(zip(members, bodies_only, strict=True)), group_done)
+        for _ in range(steps):
+            pre = self.physics.step_group(g, pre)
+        stepped = Kinematics.of(pre)
+        placements = [
+            _place(r.spec, group.model, v, stepped.rows(r.local_start, r.local_start + r.size)) if s else p
+            for r, v, p, s in zip(members, vecs, placements, stepping, strict=True)
+        ]
+        placed = self._placed_data(data, group, list(zip(members, placements, strict=True)), group_done)
+        stepped_rows = group_done & jnp.asarray(np.repeat(stepping, [r.size for r in members]))
+        return placed.replace(
+            qacc_warmstart=_select(stepped_rows, pre.qacc_warmstart, placed.qacc_warmstart)
+        ), placements
 
     def _placed_data(
         self, data: mjx.Data, group: Any, parts: list[tuple[_TaskRows, Placement]], done: Array
@@ -415,7 +455,8 @@ class Env:
 
     def _observe_and_reward(
         self, kin: tuple[Kinematics, ...], state: State, action: Array
-    ) -> tuple[Array, Array, dict[str, Array]]:
+    ) -> tuple[Array, Array, dict[str, Array], dict[str, Array]]:
+        """Obs, reward and info after a step, and the constants with first-step latches applied."""
         curr_parts = []
         for rows in self._rows:
             model = self.physics.groups[rows.group].model
@@ -428,7 +469,8 @@ class Env:
         obs = jnp.concatenate([curr, state.obs[:, :18], goal], axis=-1)
         obs = self._clip_obs(obs)
 
-        rewards, infos = [], []
+        first_step = state.steps == 0
+        rewards, infos, constant_parts = [], [], []
         for rows in self._rows:
             model = self.physics.groups[rows.group].model
             frames = kin[rows.group].rows(rows.local_start, rows.local_start + rows.size)
@@ -441,19 +483,28 @@ class Env:
                 a: Array,
                 t: Array,
                 c: dict[str, Array],
+                first: Array,
                 m: Any = model,
                 spec: TaskSpec = rows.spec,
-            ) -> tuple[Array, dict[str, Array]]:
-                return spec.reward_v2(
-                    StepInputs(frame=Frame(m, k), obs=o, action=a, target_pos=t, constants=c)
-                )
+            ) -> tuple[Array, dict[str, Array], dict[str, Array]]:
+                step = StepInputs(frame=Frame(m, k), obs=o, action=a, target_pos=t, constants=c)
+                if spec.latch is not None:
+                    latched = {name: jnp.where(first, v, c[name]) for name, v in spec.latch(step).items()}
+                    c = {**c, **latched}
+                    step = dataclasses.replace(step, constants=c)
+                reward_fn = spec.reward_v1 if self.reward_version == "v1" else spec.reward_v2
+                return (*reward_fn(step), c)
 
-            reward, info = jax.vmap(one)(frames, obs[sl], action[sl], state.target_pos[sl], constants)
+            reward, info, constants = jax.vmap(one)(
+                frames, obs[sl], action[sl], state.target_pos[sl], constants, first_step[sl]
+            )
             rewards.append(reward)
             infos.append(info)
+            constant_parts.append(constants)
         info = {k: jnp.concatenate([i[k] for i in infos]) for k in infos[0]}
         info["success"] = info["success"] > 0
-        return obs, jnp.concatenate(rewards).astype(jnp.float32), info
+        constants = {k: jnp.concatenate([c[k] for c in constant_parts]) for k in state.constants}
+        return obs, jnp.concatenate(rewards).astype(jnp.float32), info, constants
 
     def _clip_obs(self, obs: Array) -> Array:
         """The reference clips step observations to its observation space."""
@@ -468,6 +519,11 @@ class Env:
         low = jnp.concatenate([hand_low, minus_one, -inf, hand_low, minus_one, -inf, goal_low], axis=-1)
         high = jnp.concatenate([hand_high, one, inf, hand_high, one, inf, goal_high], axis=-1)
         return jnp.clip(obs, low, high)
+
+
+def _place(spec: TaskSpec, model: Any, rand_vecs: Array, settled: Kinematics) -> Placement:
+    """`spec.place` over a task's rows, each from its own settled (or stepped) state."""
+    return jax.vmap(lambda v, k: spec.place(v, Frame(model, k)))(rand_vecs, settled)
 
 
 def _select(mask: Array, new: Array, old: Array) -> Array:

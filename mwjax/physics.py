@@ -94,15 +94,16 @@ class Physics:
 
     def step(self, datas: tuple[mjx.Data, ...]) -> tuple[mjx.Data, ...]:
         """`substeps` physics steps, then kinematics so positions describe the new state."""
+        return tuple(self.step_group(g, data) for g, data in enumerate(datas))
+
+    def step_group(self, g: int, data: mjx.Data) -> mjx.Data:
+        """`step` for group `g` alone."""
+        model = self.groups[g].device_model
         step = jax.vmap(mjx.step, in_axes=(None, 0))
-        out = []
-        for group, data in zip(self.groups, datas, strict=True):
-            model = group.device_model
-            # Unrolled: a device-side loop would cost a host round trip per substep on GPU.
-            for _ in range(self.config.substeps):
-                data = step(model, data)
-            out.append(jax.vmap(mjx.kinematics, in_axes=(None, 0))(model, data))
-        return tuple(out)
+        # Unrolled: a device-side loop would cost a host round trip per substep on GPU.
+        for _ in range(self.config.substeps):
+            data = step(model, data)
+        return jax.vmap(mjx.kinematics, in_axes=(None, 0))(model, data)
 
     def kinematics(self, datas: tuple[mjx.Data, ...]) -> tuple[mjx.Data, ...]:
         return tuple(

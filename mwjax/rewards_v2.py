@@ -132,7 +132,7 @@ def gripper_caging(
     return caging_and_gripping
 
 
-def _info(
+def info_terms(
     reward: Array,
     success: Array,
     near_object: Array,
@@ -208,7 +208,7 @@ def pick_place(step: StepInputs) -> tuple[Array, dict[str, Array]]:
     lifted = (tcp_to_obj < 0.02) & (tcp_opened > 0) & (obj[2] - 0.01 > obj_init_pos[2])
     reward = jnp.where(lifted, reward + 1.0 + 5.0 * in_place, reward)
     reward = jnp.where(obj_to_target < TARGET_RADIUS, 10.0, reward)
-    return _info(
+    return info_terms(
         reward,
         success=obj_to_target <= 0.07,
         near_object=tcp_to_obj <= 0.03,
@@ -237,7 +237,7 @@ def _reach(step: StepInputs) -> tuple[Array, Array, Array]:
 def reach(step: StepInputs) -> tuple[Array, dict[str, Array]]:
     reward, tcp_to_target, in_place = _reach(step)
     # Quirk: reach reports the raw tcp-goal distance as near_object and grasp_reward.
-    return _info(
+    return info_terms(
         reward,
         success=tcp_to_target <= 0.05,
         near_object=tcp_to_target,
@@ -250,7 +250,7 @@ def reach(step: StepInputs) -> tuple[Array, dict[str, Array]]:
 def reach_wall(step: StepInputs) -> tuple[Array, dict[str, Array]]:
     reward, tcp_to_target, in_place = _reach(step)
     # reach-wall reports near_object and grasp_reward as constant 0.
-    return _info(
+    return info_terms(
         reward,
         success=tcp_to_target <= 0.05,
         near_object=0.0,
@@ -286,7 +286,7 @@ def push(step: StepInputs) -> tuple[Array, dict[str, Array]]:
     near = (tcp_to_obj < 0.02) & (tcp_opened > 0)
     reward = jnp.where(near, reward + 1.0 + reward + 5.0 * in_place, reward)
     reward = jnp.where(target_to_obj < TARGET_RADIUS, 10.0, reward)
-    return _info(
+    return info_terms(
         reward,
         success=target_to_obj <= TARGET_RADIUS,
         near_object=tcp_to_obj <= 0.03,
@@ -340,7 +340,7 @@ def _around_wall(
     reward = jnp.where(near, base + 1.0 + 4.0 * in_place_part1, base)
     reward = jnp.where(near & (obj[1] > 0.75), base + 1.0 + 4.0 + 3.0 * in_place_part2, reward)
     reward = jnp.where(obj_to_target < TARGET_RADIUS, 10.0, reward)
-    return _info(
+    return info_terms(
         reward,
         success=obj_to_target <= 0.07,
         near_object=tcp_to_obj <= 0.03,
@@ -418,7 +418,7 @@ def push_back(step: StepInputs) -> tuple[Array, dict[str, Array]]:
     pushing = pushing & (target_to_obj_init - target_to_obj > 0.01)
     reward = jnp.where(pushing, reward + 1.0 + 5.0 * in_place, reward)
     reward = jnp.where(target_to_obj < TARGET_RADIUS, 10.0, reward)
-    return _info(
+    return info_terms(
         reward,
         success=target_to_obj <= 0.07,
         near_object=tcp_to_obj <= 0.03,
@@ -473,7 +473,7 @@ def peg_insert_side(step: StepInputs) -> tuple[Array, dict[str, Array]]:
     reward = hamacher_product(object_grasped, in_place)
     reward = jnp.where(lifted, reward + 1.0 + 5.0 * in_place, reward)
     reward = jnp.where(obj_to_target <= 0.07, 10.0, reward)
-    return _info(
+    return info_terms(
         reward,
         success=obj_to_target <= 0.07,
         near_object=tcp_to_obj <= 0.03,
@@ -523,7 +523,7 @@ def door_open(step: StepInputs) -> tuple[Array, dict[str, Array]]:
     # Success and the reward override look only at the handle's x against the goal's x.
     success = jnp.abs(obs[4] - step.target_pos[0]) <= 0.08
     reward = jnp.where(success, 10.0, reward)
-    return _info(
+    return info_terms(
         reward,
         success=success,
         near_object=ready_to_open,  # the reference reports the readiness term as near_object
@@ -552,7 +552,7 @@ def drawer_open(step: StepInputs) -> tuple[Array, dict[str, Array]]:
         sigmoid="long_tail",
     )
     reward = 5.0 * (reward_for_caging + reward_for_opening)
-    return _info(
+    return info_terms(
         reward,
         success=handle_error <= 0.03,
         near_object=jnp.linalg.norm(handle - gripper) <= 0.03,
@@ -594,7 +594,7 @@ def drawer_close(step: StepInputs) -> tuple[Array, dict[str, Array]]:
     reward = hamacher_product(reach, in_place)
     success = target_to_obj <= radius + 0.015
     reward = 10.0 * jnp.where(success, 1.0, reward)
-    return _info(
+    return info_terms(
         reward,
         success=success,
         near_object=tcp_to_obj <= 0.01,
@@ -630,7 +630,7 @@ def _button_info(
     reward: Array, success_radius: float, terms: tuple[Array, Array, Array, Array]
 ) -> tuple[Array, dict[str, Array]]:
     tcp_to_obj, obj_to_target, near_button, button_pressed = terms
-    return _info(
+    return info_terms(
         reward,
         success=obj_to_target <= success_radius,
         near_object=tcp_to_obj <= 0.05,
@@ -703,7 +703,7 @@ def _window(
         sigmoid=reach_sigmoid,
     )
     reward = 10.0 * hamacher_product(reach, in_place)
-    return _info(
+    return info_terms(
         reward,
         success=target_to_obj <= TARGET_RADIUS,
         near_object=tcp_to_obj <= 0.05,
@@ -756,7 +756,7 @@ def handle_press(step: StepInputs) -> tuple[Array, dict[str, Array]]:
     )
     success = target_to_obj <= radius
     reward = 10.0 * jnp.where(success, 1.0, hamacher_product(reach, in_place))
-    return _info(
+    return info_terms(
         reward,
         success=success,
         near_object=tcp_to_obj <= 0.05,
@@ -800,7 +800,7 @@ def _handle_pull(
     )
     reward = jnp.where(lifted, reward + 1.0 + 5.0 * in_place, reward)
     reward = jnp.where(target_to_obj < TARGET_RADIUS, 10.0, reward)
-    return _info(
+    return info_terms(
         reward,
         success=target_to_obj <= success_radius,
         near_object=tcp_to_obj <= 0.05,
@@ -854,7 +854,7 @@ def _faucet(step: StepInputs, obj: Array) -> tuple[Array, dict[str, Array]]:
     )
     success = target_to_obj <= radius
     reward = jnp.where(success, 10.0, 2.0 * (2.0 * reach + 3.0 * in_place))
-    return _info(
+    return info_terms(
         reward,
         success=success,
         near_object=tcp_to_obj <= 0.01,
@@ -905,7 +905,7 @@ def dial_turn(step: StepInputs) -> tuple[Array, dict[str, Array]]:
     gripper_closed = jnp.minimum(jnp.maximum(0.0, step.action[-1]), 1.0)
     reach = hamacher_product(reach, gripper_closed)
     reward = 10.0 * hamacher_product(reach, in_place)
-    return _info(
+    return info_terms(
         reward,
         success=target_to_obj <= radius,
         near_object=tcp_to_obj <= 0.01,
@@ -945,7 +945,7 @@ def _plate_info(
 ) -> tuple[Array, dict[str, Array]]:
     reward = jnp.where(obj_to_target < TARGET_RADIUS, 10.0, reward)
     # Quirk: success is obj_to_target <= 0.07 while the reward's 10.0 needs < TARGET_RADIUS.
-    return _info(
+    return info_terms(
         reward,
         success=obj_to_target <= 0.07,
         near_object=tcp_to_obj <= 0.03,
@@ -987,7 +987,7 @@ def _sweep_reward(
     object_grasped = _pad_gripping_caging(step, obj, 0.02, grip_success_margin, x_z_success_margin)
     reward = 2.0 * object_grasped + 6.0 * hamacher_product(object_grasped, in_place)
     reward = jnp.where(obj_to_target < TARGET_RADIUS, 10.0, reward)
-    return _info(
+    return info_terms(
         reward,
         success=obj_to_target <= 0.05,
         near_object=tcp_to_obj <= 0.03,
@@ -1005,3 +1005,15 @@ def sweep_into(step: StepInputs) -> tuple[Array, dict[str, Array]]:
     # The target's z follows the puck (so only x and y count), margin included.
     target = jnp.stack([step.target_pos[0], step.target_pos[1], step.obs[6]])
     return _sweep_reward(step, target, grip_success_margin=0.025, x_z_success_margin=0.01)
+
+
+# ---- assembly, disassemble, peg-unplug-side, pick-out-of-hole, shelf-place, bin-picking ----------
+
+
+# ---- basketball, soccer, stick-push, stick-pull, hammer, hand-insert -----------------------------
+
+
+# ---- box-close, coffee-button, coffee-pull, coffee-push, lever-pull ------------------------------
+
+
+# ---- door-close, door-lock, door-unlock, handle-press, handle-pull -------------------------------

@@ -49,11 +49,14 @@ class Replay:
     success: dict[str, np.ndarray]
 
 
-def replay_recorded_states(tasks: list[str]) -> Replay:
+def replay_recorded_states(tasks: list[str], reward_version: str = "v2") -> Replay:
     """Loads each recorded post-step physics state into one batched env (one row per recorded
-    step), with the recorded previous observation as the stacked frame, and evaluates it."""
+    step), with the recorded previous observation as the stacked frame, and evaluates it.
+
+    Constants latched on an episode's first step are evaluated on each reset's first recorded
+    step, then given to that reset's later steps (evaluated as steps > 0, so they keep them)."""
     resets, steps = shape(tasks[0])
-    env = mwjax.make(tasks, envs_per_task=resets * steps)
+    env = mwjax.make(tasks, envs_per_task=resets * steps, reward_version=reward_version)
     order = env.task_list
 
     def rows(task: str, key: str) -> np.ndarray:
@@ -77,7 +80,15 @@ def replay_recorded_states(tasks: list[str]) -> Replay:
     ]
     previous_obs = np.concatenate([p.reshape(resets * steps, -1) for p in previous])
     state = dataclasses.replace(state, obs=jnp.asarray(previous_obs, jnp.float32))
-    state = jax.jit(env.observe)(state, jnp.asarray(actions))
+    observe = jax.jit(env.observe)
+    first = observe(state, jnp.asarray(actions))
+    episode_start = (np.arange(env.num_envs) // steps) * steps
+    state = dataclasses.replace(
+        state,
+        constants={k: v[episode_start] for k, v in first.constants.items()},
+        steps=jnp.asarray(np.arange(env.num_envs) % steps, jnp.int32),
+    )
+    state = observe(state, jnp.asarray(actions))
 
     def per_task(x: jax.Array) -> dict[str, np.ndarray]:
         x = np.asarray(x)

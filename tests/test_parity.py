@@ -19,6 +19,7 @@ from mwjax.tasks import TASKS
 
 # Every ported task that has a reference recording; MT10 must be among them.
 PORTED = [task for task in recorded_tasks() if task in TASKS]
+PORTED_V1 = [task for task in PORTED if TASKS[task].reward_v1 is not None]
 
 OBS_TOL = 1e-5
 REWARD_TOL = 1e-4
@@ -57,6 +58,11 @@ def replay():
 
 
 @pytest.fixture(scope="module")
+def replay_v1():
+    return replay_recorded_states(PORTED_V1, reward_version="v1")
+
+
+@pytest.fixture(scope="module")
 def free_run():
     """mwjax's own trajectory from each recorded reset, driven by the recorded actions."""
     resets = shape(PORTED[0])[0]
@@ -88,20 +94,33 @@ def test_obs_given_state(task, replay):
     )
 
 
-@pytest.mark.parametrize("task", PORTED)
-def test_reward_v2_given_state(task, replay):
-    ref = load(task)["reward_v2"]
-    ok = np.abs(replay.reward[task] - ref) <= REWARD_TOL * np.maximum(1.0, np.abs(ref))
+def _assert_rewards_match(ours: np.ndarray, ref: np.ndarray) -> None:
+    ok = np.abs(ours - ref) <= REWARD_TOL * np.maximum(1.0, np.abs(ref))
     bad = np.argwhere(~ok)
     assert ok.mean() >= REWARD_PASS_FRACTION, (
         f"{ok.mean():.2%} within tolerance; first misses (reset, step, ours, ref): "
-        + ", ".join(f"({r}, {t}, {replay.reward[task][r, t]:.6g}, {ref[r, t]:.6g})" for r, t in bad[:5])
+        + ", ".join(f"({r}, {t}, {ours[r, t]:.6g}, {ref[r, t]:.6g})" for r, t in bad[:5])
     )
+
+
+@pytest.mark.parametrize("task", PORTED)
+def test_reward_v2_given_state(task, replay):
+    _assert_rewards_match(replay.reward[task], load(task)["reward_v2"])
 
 
 @pytest.mark.parametrize("task", PORTED)
 def test_success_given_state(task, replay):
     np.testing.assert_array_equal(replay.success[task], load(task)["success_v2"] > 0)
+
+
+@pytest.mark.parametrize("task", PORTED_V1)
+def test_reward_v1_given_state(task, replay_v1):
+    _assert_rewards_match(replay_v1.reward[task], load(task)["reward_v1"])
+
+
+@pytest.mark.parametrize("task", PORTED_V1)
+def test_success_v1_given_state(task, replay_v1):
+    np.testing.assert_array_equal(replay_v1.success[task], load(task)["success_v1"] > 0)
 
 
 @pytest.mark.parametrize("task", PORTED)

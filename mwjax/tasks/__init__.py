@@ -2,12 +2,38 @@
 
 from __future__ import annotations
 
-from mwjax.tasks import articulated, handles, peg, plate_slide, reach_push_pick_place, rotary
+from mwjax.tasks import (
+    articulated,
+    assembly,
+    ball,
+    box_close,
+    coffee,
+    handles,
+    peg,
+    placing,
+    plate_slide,
+    reach_push_pick_place,
+    rotary,
+    tool_use,
+)
 from mwjax.tasks.spec import TaskSpec
 
 TASKS: dict[str, TaskSpec] = {
     spec.name: spec
-    for family in (reach_push_pick_place, articulated, peg, handles, rotary, plate_slide)
+    for family in (
+        reach_push_pick_place,
+        articulated,
+        peg,
+        handles,
+        rotary,
+        plate_slide,
+        assembly,
+        placing,
+        ball,
+        tool_use,
+        coffee,
+        box_close,
+    )
     for spec in family.TASKS
 }
 

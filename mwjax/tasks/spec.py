@@ -9,7 +9,12 @@ A task is data plus four small pure functions of one env (they are vmapped by th
   from the kinematics of the placed scene (e.g. the handle position after moving a door). A
   `"target_pos"` entry replaces `placement.target_pos` (for goals read off the placed scene).
 - `objects(frame) -> (pos (k, 3), quat (k, 4))`: the object part of the observation.
-- `reward_v2(step) -> (reward, info)`: V2 reward and its info terms, `info["success"]` included.
+- `reward_v2(step)` / `reward_v1(step) -> (reward, info)`: the reward of each version and its info
+  terms, `info["success"]` included (the reference's success test can differ between versions).
+
+Two rarer hooks: `latch(step) -> dict` updates constants on the first step of an episode (V2's
+non-Markov corner, bin-picking), and `reset_env_steps` runs that many env steps of physics between
+moving the fixed bodies and `place`'s joint writes, as box-close and door-lock do in their reset.
 
 The core knows nothing else about a task.
 """
@@ -144,6 +149,7 @@ PlaceFn = Callable[[Array, Frame], Placement]
 ConstantsFn = Callable[[Frame, Placement, Frame], dict[str, Array]]
 ObjectsFn = Callable[[Frame], tuple[Array, Array]]
 RewardFn = Callable[[StepInputs], tuple[Array, dict[str, Array]]]
+LatchFn = Callable[[StepInputs], dict[str, Array]]
 
 
 def _no_constants(frame: Frame, placement: Placement, settled: Frame) -> dict[str, Array]:
@@ -171,7 +177,14 @@ class TaskSpec:
     place: PlaceFn
     objects: ObjectsFn
     reward_v2: RewardFn
+    reward_v1: RewardFn | None = None
     constants: ConstantsFn = _no_constants
+    # Constants the reference sets on the first step of an episode; `constants` must give each
+    # key a placeholder of the same shape at reset.
+    latch: LatchFn | None = None
+    # Env steps (each `frame_skip` physics steps) the reference runs inside reset_model after
+    # moving fixed bodies; `place` is then applied again to the stepped state (its `settled`).
+    reset_env_steps: int = 0
     hand_low: tuple[float, float, float] = HAND_LOW
     hand_high: tuple[float, float, float] = HAND_HIGH
     goal_low: tuple[float, float, float] | None = None

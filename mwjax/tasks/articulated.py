@@ -6,7 +6,7 @@ from collections.abc import Sequence
 
 import jax.numpy as jnp
 
-from mwjax import rewards_v2
+from mwjax import rewards_v1, rewards_v2
 from mwjax.tasks.spec import ConstantsFn, Frame, ObjectsFn, PlaceFn, Placement, TaskSpec, quat_from_xmat
 
 HAND_INIT = (0.0, 0.6, 0.2)
@@ -15,20 +15,27 @@ HAND_INIT = (0.0, 0.6, 0.2)
 def place_fixture(
     body: str,
     goal_offset: Sequence[float],
-    joint: str | None = None,
+    joint: str | int | None = None,
     joint_pos: float = 0.0,
     zero_joint_qvel: bool = False,
 ) -> PlaceFn:
     """The shared reset of a fixture task: `model.body(body).pos = rand_vec`, goal at
     `rand_vec + goal_offset`, and optionally one joint's qpos written (its qvel zeroed only when
-    the reference's `_set_obj_xyz` does so). Everything else stays as `_reset_hand` left it."""
+    the reference's `_set_obj_xyz` does so). Everything else stays as `_reset_hand` left it.
+
+    `joint` is a joint name, or for an unnamed 1-dof joint the index the reference writes in both
+    qpos and qvel (`qpos[9]`, `qvel[9]`)."""
 
     def place(rand_vec: jnp.ndarray, settled: Frame) -> Placement:
         qpos, qvel = settled.qpos, settled.qvel
         if joint is not None:
-            qpos = qpos.at[settled.joint_qposadr(joint)].set(joint_pos)
+            if isinstance(joint, int):
+                qpos_adr = dof_adr = joint
+            else:
+                qpos_adr, dof_adr = settled.joint_qposadr(joint), settled.joint_dofadr(joint)
+            qpos = qpos.at[qpos_adr].set(joint_pos)
             if zero_joint_qvel:
-                qvel = qvel.at[settled.joint_dofadr(joint)].set(0.0)
+                qvel = qvel.at[dof_adr].set(0.0)
         return Placement(
             qpos=qpos,
             qvel=qvel,
@@ -66,6 +73,12 @@ def _drawer_close_handle(frame: Frame) -> tuple[jnp.ndarray, jnp.ndarray]:
     return pos[None], jnp.zeros((1, 4), pos.dtype)
 
 
+def _door_open_constants(frame: Frame, placement: Placement, settled: Frame) -> dict[str, jnp.ndarray]:
+    # V1's maxPullDist: the closed handle's xy distance to the goal, after _set_obj_xyz's mj_forward.
+    pull = jnp.linalg.norm(frame.geom_pos("handle")[:2] - placement.target_pos[:2])
+    return {"max_pull_dist": pull}
+
+
 def _init_tcp(frame: Frame, placement: Placement, settled: Frame) -> dict[str, jnp.ndarray]:
     # init_tcp is taken at the end of _reset_hand, before the fixture moves.
     return {"init_tcp": settled.tcp_center}
@@ -89,8 +102,10 @@ DOOR_OPEN = TaskSpec(
     goal_high=(-0.2, 0.5, 0.1501),
     # _set_obj_xyz(0): door hinge closed and its velocity zeroed.
     place=place_fixture("door", (-0.3, -0.45, 0.0), joint="doorjoint", joint_pos=0.0, zero_joint_qvel=True),
+    constants=_door_open_constants,
     objects=_door_handle,
     reward_v2=rewards_v2.door_open,
+    reward_v1=rewards_v1.door_open,
     moved_bodies=("door",),
 )
 
@@ -105,6 +120,7 @@ DRAWER_OPEN = TaskSpec(
     constants=_init_tcp,
     objects=_drawer_open_handle,
     reward_v2=rewards_v2.drawer_open,
+    reward_v1=rewards_v1.drawer_open,
     moved_bodies=_DRAWER_MOVED,
 )
 
@@ -119,10 +135,113 @@ DRAWER_CLOSE = TaskSpec(
     constants=_drawer_close_constants,
     objects=_drawer_close_handle,
     reward_v2=rewards_v2.drawer_close,
+    reward_v1=rewards_v1.drawer_close,
     moved_bodies=_DRAWER_MOVED,
 )
 
 _DOOR_DRAWER_TASKS = (DOOR_OPEN, DRAWER_OPEN, DRAWER_CLOSE)
+
+# ---- door-close, door-lock, door-unlock ---------------------------------------------------------
+
+# door-close starts its hand far left, beside the open door.
+_HAND_INIT_DOOR_CLOSE = (-0.5, 0.6, 0.2)
+# The lock tasks' hand box (and so mocap box and door-lock's goal box) reaches below the table.
+_LOCK_HAND_LOW = (-0.5, 0.40, -0.15)
+# The lock's hinge is unnamed; the reference writes qpos[9] / qvel[9] directly.
+_LOCK_ADR = 9
+# Goals relative to the lock's hinge (lock_link's origin): down for lock, sideways for unlock.
+_LOCK_GOAL_OFFSET = (0.0, -0.04, -0.1)
+_UNLOCK_GOAL_OFFSET = (0.1, -0.04, 0.0)
+
+
+def _door_close_constants(frame: Frame, placement: Placement, settled: Frame) -> dict[str, jnp.ndarray]:
+    handle = frame.geom_pos("handle")
+    return {
+        "obj_init_pos": placement.moved_bodies["door"],  # rand_vec: the door body position
+        # V2's hand margin starts at the nominal hand_init_pos (float32 in the reference).
+        "hand_init_pos": jnp.asarray(_HAND_INIT_DOOR_CLOSE, jnp.float32),
+        # V1's maxPullDist: the opened handle's xy distance to the goal, after set_state.
+        "max_pull_dist": jnp.linalg.norm(handle[:2] - placement.target_pos[:2]),
+    }
+
+
+def _lock_objects(site: str) -> ObjectsFn:
+    def objects(frame: Frame) -> tuple[jnp.ndarray, jnp.ndarray]:
+        # MuJoCo's xquat of the (fixed) door: (w, x, y, z).
+        return frame.site_pos(site)[None], frame.body_quat("door_link")[None]
+
+    return objects
+
+
+def _lock_constants(goal_offset: Sequence[float]) -> ConstantsFn:
+    """The goal is lock_link's position after the reset (plus `goal_offset`), a fresh copy; V1's
+    maxPullDist is the offset's length."""
+
+    def constants(frame: Frame, placement: Placement, settled: Frame) -> dict[str, jnp.ndarray]:
+        offset = jnp.asarray(goal_offset, jnp.float32)
+        return {
+            "target_pos": frame.body_pos("lock_link") + offset,
+            "init_tcp": settled.tcp_center,
+            "max_pull_dist": jnp.linalg.norm(offset),
+        }
+
+    return constants
+
+
+DOOR_CLOSE = TaskSpec(
+    name="door-close-v3",
+    scene="sawyer_door_pull.xml",
+    hand_init_pos=_HAND_INIT_DOOR_CLOSE,
+    random_low=(0.0, 0.85, 0.15),
+    random_high=(0.1, 0.95, 0.15),
+    goal_low=(0.2, 0.65, 0.1499),
+    goal_high=(0.3, 0.75, 0.1501),
+    # _set_obj_xyz(-1.5708): the door starts swung open, its hinge velocity zeroed.
+    place=place_fixture("door", (0.2, -0.2, 0.0), joint="doorjoint", joint_pos=-1.5708, zero_joint_qvel=True),
+    constants=_door_close_constants,
+    objects=_door_handle,
+    reward_v2=rewards_v2.door_close,
+    reward_v1=rewards_v1.door_close,
+    moved_bodies=("door",),  # door-open shares the scene
+)
+
+DOOR_LOCK = TaskSpec(
+    name="door-lock-v3",
+    scene="sawyer_door_lock.xml",
+    hand_init_pos=HAND_INIT,
+    random_low=(-0.1, 0.8, 0.15),
+    random_high=(0.1, 0.85, 0.15),
+    hand_low=_LOCK_HAND_LOW,
+    # No joint write: reset_model moves the door, then runs one env step of physics (the lock
+    # settles under gravity) before it reads the lock.
+    place=place_fixture("door", (0.0, 0.0, 0.0)),
+    reset_env_steps=1,
+    constants=_lock_constants(_LOCK_GOAL_OFFSET),
+    objects=_lock_objects("lockStartLock"),
+    reward_v2=rewards_v2.door_lock,
+    reward_v1=rewards_v1.door_lock,
+    moved_bodies=("door",),
+)
+
+DOOR_UNLOCK = TaskSpec(
+    name="door-unlock-v3",
+    scene="sawyer_door_lock.xml",
+    hand_init_pos=HAND_INIT,
+    random_low=(-0.1, 0.8, 0.15),
+    random_high=(0.1, 0.85, 0.15),
+    hand_low=_LOCK_HAND_LOW,
+    goal_low=(0.0, 0.64, 0.2100),
+    goal_high=(0.2, 0.7, 0.2111),
+    # _set_obj_xyz(1.5708): the lock starts turned down (locked), its velocity zeroed.
+    place=place_fixture("door", (0.0, 0.0, 0.0), joint=_LOCK_ADR, joint_pos=1.5708, zero_joint_qvel=True),
+    constants=_lock_constants(_UNLOCK_GOAL_OFFSET),
+    objects=_lock_objects("lockStartUnlock"),
+    reward_v2=rewards_v2.door_unlock,
+    reward_v1=rewards_v1.door_unlock,
+    moved_bodies=("door",),
+)
+
+_DOOR_LOCK_TASKS = (DOOR_CLOSE, DOOR_LOCK, DOOR_UNLOCK)
 
 # ---- button-press-topdown, window ---------------------------------------------------------------
 
@@ -218,6 +337,7 @@ BUTTON_PRESS_TOPDOWN = TaskSpec(
     constants=_button_topdown_constants,
     objects=_button_topdown,
     reward_v2=rewards_v2.button_press_topdown,
+    reward_v1=rewards_v1.button_press_topdown,
     moved_bodies=("box",),
 )
 
@@ -232,6 +352,7 @@ WINDOW_OPEN = TaskSpec(
     constants=_window_open_constants,
     objects=_window_open_handle,
     reward_v2=rewards_v2.window_open,
+    reward_v1=rewards_v1.window_open,
     moved_bodies=_WINDOW_MOVED,
 )
 
@@ -246,6 +367,7 @@ WINDOW_CLOSE = TaskSpec(
     constants=_window_close_constants,
     objects=_window_close_handle,
     reward_v2=rewards_v2.window_close,
+    reward_v1=rewards_v1.window_close,
     moved_bodies=_WINDOW_MOVED,
 )
 
@@ -259,6 +381,7 @@ BUTTON_PRESS_TOPDOWN_WALL = TaskSpec(
     constants=_button_topdown_constants,
     objects=_button_topdown,
     reward_v2=rewards_v2.button_press_topdown_wall,
+    reward_v1=rewards_v1.button_press_topdown_wall,
     moved_bodies=("box",),
 )
 
@@ -272,6 +395,7 @@ BUTTON_PRESS = TaskSpec(
     constants=_button_front_constants,
     objects=_button_front,
     reward_v2=rewards_v2.button_press,
+    reward_v1=rewards_v1.button_press,
     moved_bodies=("box",),
 )
 
@@ -285,6 +409,7 @@ BUTTON_PRESS_WALL = TaskSpec(
     constants=_button_front_constants,
     objects=_button_front,
     reward_v2=rewards_v2.button_press_wall,
+    reward_v1=rewards_v1.button_press_wall,
     moved_bodies=("box",),
 )
 
@@ -297,4 +422,4 @@ _BUTTON_WINDOW_TASKS = (
     BUTTON_PRESS_WALL,
 )
 
-TASKS: tuple[TaskSpec, ...] = (*_DOOR_DRAWER_TASKS, *_BUTTON_WINDOW_TASKS)
+TASKS: tuple[TaskSpec, ...] = (*_DOOR_DRAWER_TASKS, *_DOOR_LOCK_TASKS, *_BUTTON_WINDOW_TASKS)

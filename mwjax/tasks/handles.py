@@ -1,44 +1,29 @@
-"""Sideways handle tasks: a lever on a box that the reset moves, pushed down or pulled up.
+"""Handle tasks: a lever on a box that the reset moves, pushed down or pulled up.
 
-Both share `sawyer_handle_press_sideways.xml`, move the `box` body to `rand_vec` and write the
-lever's (unnamed) slide joint, qpos[9], with its qvel zeroed (`_set_obj_xyz` then `set_state`,
-which runs mj_forward), so every constant below is read off fresh kinematics.
-
-handle-press-v3 and handle-pull-v3 (`sawyer_handle_press.xml`) are not here yet: in that scene the
-reference's hand settling touches the box, so the settled state differs per goal variant and one
-recorded state per task cannot reproduce it.
+The sideways tasks share `sawyer_handle_press_sideways.xml`, handle-press and handle-pull share
+`sawyer_handle_press.xml`. All move the `box` body to `rand_vec` and write the lever's (unnamed)
+slide joint, qpos[9], with its qvel zeroed (`_set_obj_xyz` then `set_state`, which runs
+mj_forward), so every constant below is read off fresh kinematics.
 """
 
 from __future__ import annotations
 
-import dataclasses
-
 import jax.numpy as jnp
 
-from mwjax import rewards_v2
+from mwjax import rewards_v1, rewards_v2
 from mwjax.tasks.articulated import HAND_INIT, place_fixture
 from mwjax.tasks.spec import Frame, ObjectsFn, PlaceFn, Placement, TaskSpec
 
 # The lever joint is unnamed in the scenes; the reference writes qpos[9] / qvel[9] directly.
 _LEVER_ADR = 9
-# Both tasks move only the box (tasks sharing a scene list the same moved bodies).
+# Every handle task moves only the box (tasks sharing a scene list the same moved bodies).
 _BOX_MOVED = ("box",)
 _SIDE_XML = "sawyer_handle_press_sideways.xml"
 
 
 def _place_box(lever_pos: float) -> PlaceFn:
     """`model.body("box").pos = rand_vec`, then `_set_obj_xyz(lever_pos)` (qpos[9], qvel[9] = 0)."""
-    base = place_fixture("box", (0.0, 0.0, 0.0))
-
-    def place(rand_vec: jnp.ndarray, settled: Frame) -> Placement:
-        placement = base(rand_vec, settled)
-        return dataclasses.replace(
-            placement,
-            qpos=placement.qpos.at[_LEVER_ADR].set(lever_pos),
-            qvel=placement.qvel.at[_LEVER_ADR].set(0.0),
-        )
-
-    return place
+    return place_fixture("box", (0.0, 0.0, 0.0), joint=_LEVER_ADR, joint_pos=lever_pos, zero_joint_qvel=True)
 
 
 def _handle_site(site: str) -> ObjectsFn:
@@ -78,6 +63,7 @@ HANDLE_PRESS_SIDE = TaskSpec(
     constants=_press_constants,
     objects=_handle_site("handleStart"),
     reward_v2=rewards_v2.handle_press,
+    reward_v1=rewards_v1.handle_press_side,
     moved_bodies=_BOX_MOVED,
 )
 
@@ -91,7 +77,57 @@ HANDLE_PULL_SIDE = TaskSpec(
     constants=_pull_side_constants,
     objects=_handle_site("handleCenter"),
     reward_v2=rewards_v2.handle_pull_side,
+    reward_v1=rewards_v1.handle_pull_side,
     moved_bodies=_BOX_MOVED,
 )
 
-TASKS: tuple[TaskSpec, ...] = (HANDLE_PRESS_SIDE, HANDLE_PULL_SIDE)
+_FRONT_XML = "sawyer_handle_press.xml"
+# The handleStart site's z in its body (handle_link) frame, which handle-pull's V1 maxDist reads.
+_HANDLE_START_LOCAL_Z = 0.022
+
+
+def _pull_constants(frame: Frame, placement: Placement, settled: Frame) -> dict[str, jnp.ndarray]:
+    target = frame.site_pos("goalPull")
+    return {
+        "target_pos": target,
+        "obj_init_pos": placement.moved_bodies["box"],  # rand_vec: the box origin, not the handle
+        "init_tcp": settled.tcp_center,
+        # Reference quirk: maxDist reads model.site("handleStart").pos, the site's offset in its
+        # body frame, instead of its world position.
+        "max_pull_dist": jnp.abs(_HANDLE_START_LOCAL_Z - target[2]),
+    }
+
+
+HANDLE_PRESS = TaskSpec(
+    name="handle-press-v3",
+    scene=_FRONT_XML,
+    hand_init_pos=HAND_INIT,
+    random_low=(-0.1, 0.8, -0.001),
+    random_high=(0.1, 0.9, 0.001),
+    goal_low=(-0.1, 0.55, 0.04),
+    goal_high=(0.1, 0.70, 0.08),
+    place=_place_box(-0.001),
+    constants=_press_constants,
+    objects=_handle_site("handleStart"),
+    reward_v2=rewards_v2.handle_press,
+    reward_v1=rewards_v1.handle_press,
+    moved_bodies=_BOX_MOVED,
+)
+
+HANDLE_PULL = TaskSpec(
+    name="handle-pull-v3",
+    scene=_FRONT_XML,
+    hand_init_pos=HAND_INIT,
+    random_low=(-0.1, 0.8, -0.001),
+    random_high=(0.1, 0.9, 0.001),
+    goal_low=(-0.1, 0.55, 0.04),
+    goal_high=(0.1, 0.70, 0.18),
+    place=_place_box(-0.1),
+    constants=_pull_constants,
+    objects=_handle_site("handleRight"),
+    reward_v2=rewards_v2.handle_pull,
+    reward_v1=rewards_v1.handle_pull,
+    moved_bodies=_BOX_MOVED,
+)
+
+TASKS: tuple[TaskSpec, ...] = (HANDLE_PRESS_SIDE, HANDLE_PULL_SIDE, HANDLE_PRESS, HANDLE_PULL)

@@ -1,11 +1,11 @@
-"""peg-insert-side: a peg to grasp and push into a hole in a box the reset moves."""
+"""peg-insert-side and peg-unplug-side: a peg (plug) and a box with a hole that the reset moves."""
 
 from __future__ import annotations
 
 import jax.numpy as jnp
 import numpy as np
 
-from mwjax import rewards_v2
+from mwjax import rewards_v1, rewards_v2
 from mwjax.tasks.spec import Frame, Placement, TaskSpec, quat_from_xmat, set_object_xyz
 
 # The goal (hole) is this far from the box body origin; the goal space is shifted by it too.
@@ -60,4 +60,60 @@ PEG_INSERT_SIDE = TaskSpec(
     rand_vec_valid=_peg_box_apart,
 )
 
-TASKS: tuple[TaskSpec, ...] = (PEG_INSERT_SIDE,)
+# ---- peg-unplug-side ------------------------------------------------------------------------------
+
+# The plug sits this far from the box body origin, and the goal 15 cm further along x.
+_PLUG_OFFSET = (0.044, 0.0, 0.131)
+_UNPLUG_DISTANCE = 0.15
+_UNPLUG_BOX_LOW, _UNPLUG_BOX_HIGH = (-0.25, 0.6, -0.001), (-0.15, 0.8, 0.001)
+
+
+def _plug(frame: Frame) -> tuple[jnp.ndarray, jnp.ndarray]:
+    # The plug's end site and the plug body's MuJoCo xquat (w, x, y, z).
+    return frame.site_pos("pegEnd")[None], frame.body_quat("plug1")[None]
+
+
+def _place_unplug(rand_vec: jnp.ndarray, settled: Frame) -> Placement:
+    pos_box = rand_vec[:3]
+    pos_plug = pos_box + jnp.asarray(_PLUG_OFFSET, rand_vec.dtype)
+    # The task's own _set_obj_xyz: plug position and identity orientation, linear velocity zeroed.
+    # Reference quirk: its angular velocity (qvel[12:15]) is kept from the settled state.
+    qpos = settled.qpos.at[9:12].set(pos_plug).at[12:16].set(jnp.array([1.0, 0.0, 0.0, 0.0]))
+    qvel = settled.qvel.at[9:12].set(0.0)
+    target = pos_plug + jnp.array([_UNPLUG_DISTANCE, 0.0, 0.0], rand_vec.dtype)
+    return Placement(qpos=qpos, qvel=qvel, target_pos=target, moved_bodies={"box": pos_box})
+
+
+def _unplug_constants(frame: Frame, placement: Placement, settled: Frame) -> dict[str, jnp.ndarray]:
+    obj_init_pos = frame.site_pos("pegEnd")  # read after the placement's mj_forward
+    return {
+        "obj_init_pos": obj_init_pos,
+        "init_tcp": settled.tcp_center,
+        # V1: its reach term measures the tcp height change from the nominal hand_init_pos.
+        "hand_init_pos": jnp.asarray(PEG_UNPLUG_SIDE.hand_init_pos, jnp.float32),
+        "max_placing_dist": jnp.linalg.norm(placement.target_pos - obj_init_pos),
+    }
+
+
+# Reference quirk, not reproduced: the plug settles during _reset_hand against the box where the
+# previous episode left it (model.body_pos persists across resets), so the angular velocity the
+# reset keeps depends on the episode history. Every episode here starts from the recorded first
+# episode's settled plug.
+PEG_UNPLUG_SIDE = TaskSpec(
+    name="peg-unplug-side-v3",
+    scene="sawyer_peg_unplug_side.xml",
+    hand_init_pos=(0.0, 0.6, 0.2),
+    random_low=_UNPLUG_BOX_LOW,
+    random_high=_UNPLUG_BOX_HIGH,
+    # The goal space is the box space shifted to the goal (plug offset + unplug distance in x).
+    goal_low=tuple(lo + d for lo, d in zip(_UNPLUG_BOX_LOW, (0.194, 0.0, 0.131), strict=True)),
+    goal_high=tuple(hi + d for hi, d in zip(_UNPLUG_BOX_HIGH, (0.194, 0.0, 0.131), strict=True)),
+    place=_place_unplug,
+    constants=_unplug_constants,
+    objects=_plug,
+    reward_v2=rewards_v2.peg_unplug_side,
+    reward_v1=rewards_v1.peg_unplug_side,
+    moved_bodies=("box",),
+)
+
+TASKS: tuple[TaskSpec, ...] = (PEG_INSERT_SIDE, PEG_UNPLUG_SIDE)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import jax.numpy as jnp
 import numpy as np
 
-from mwjax import rewards_v2
+from mwjax import rewards_v1, rewards_v2
 from mwjax.tasks.spec import Frame, Placement, TaskSpec, quat_from_xmat, set_object_xyz
 
 
@@ -226,6 +226,44 @@ SWEEP_INTO = TaskSpec(
     rand_vec_valid=_away_from_sweep_into_goal,
 )
 
+
+def _place_hand_insert(rand_vec: jnp.ndarray, settled: Frame) -> Placement:
+    # The block's height is init_config's 0.05 (rand_vec's z range is that single value), which
+    # leaves it 2 cm inside the 5 cm table top: the reference places it so, and the contact pushes
+    # it up over the first steps. The goal is rand_vec's.
+    obj_init_pos = jnp.concatenate([rand_vec[:2], jnp.asarray([0.05], rand_vec.dtype)])
+    qpos, qvel = set_object_xyz(settled, obj_init_pos)
+    return Placement(qpos=qpos, qvel=qvel, target_pos=rand_vec[3:])
+
+
+def _hand_insert_constants(frame: Frame, placement: Placement, settled: Frame) -> dict[str, jnp.ndarray]:
+    # V1's maxReachDist: the height of the nominal hand position (hand_init_pos) above the goal.
+    hand_z = jnp.asarray(0.2, jnp.float32)
+    return {
+        **_puck_constants(frame, placement, settled),
+        "max_reach_dist": jnp.abs(hand_z - placement.target_pos[2]),
+    }
+
+
+HAND_INSERT = TaskSpec(
+    name="hand-insert-v3",
+    scene="sawyer_table_with_hole.xml",
+    hand_init_pos=(0.0, 0.6, 0.2),
+    hand_low=(-0.5, 0.40, -0.15),
+    hand_high=(0.5, 1.0, 0.5),
+    random_low=(-0.1, 0.6, 0.05, -0.04, 0.8, -0.0201),
+    random_high=(0.1, 0.7, 0.05, 0.04, 0.88, -0.0199),
+    goal_low=(-0.04, 0.8, -0.0201),
+    goal_high=(0.04, 0.88, -0.0199),
+    place=_place_hand_insert,
+    constants=_hand_insert_constants,
+    objects=_puck_body,
+    reward_v2=rewards_v2.hand_insert,
+    reward_v1=rewards_v1.hand_insert,
+    rand_vec_valid=_goal_apart,
+)
+
+
 TASKS = (
     REACH,
     PUSH,
@@ -236,4 +274,5 @@ TASKS = (
     PUSH_BACK,
     SWEEP,
     SWEEP_INTO,
+    HAND_INSERT,
 )

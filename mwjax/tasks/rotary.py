@@ -1,12 +1,12 @@
-"""Tasks on knobs and handles that turn: faucet-open, faucet-close, dial-turn."""
+"""Tasks on knobs, handles and levers that turn: faucet-open, faucet-close, dial-turn, lever-pull."""
 
 from __future__ import annotations
 
 import jax.numpy as jnp
 
-from mwjax import rewards_v2
+from mwjax import rewards_v1, rewards_v2
 from mwjax.tasks.articulated import place_fixture
-from mwjax.tasks.spec import Frame, ObjectsFn, Placement, RewardFn, TaskSpec
+from mwjax.tasks.spec import Frame, ObjectsFn, Placement, RewardFn, TaskSpec, quat_from_xmat
 
 # ---- faucet-open, faucet-close -------------------------------------------------------------------
 
@@ -34,7 +34,9 @@ def _faucet_constants(frame: Frame, placement: Placement, settled: Frame) -> dic
     }
 
 
-def _faucet(name: str, site: str, direction: float, low_x: float, reward: RewardFn) -> TaskSpec:
+def _faucet(
+    name: str, site: str, direction: float, low_x: float, reward: RewardFn, reward_v1: RewardFn
+) -> TaskSpec:
     return TaskSpec(
         name=name,
         scene="sawyer_faucet.xml",
@@ -47,12 +49,17 @@ def _faucet(name: str, site: str, direction: float, low_x: float, reward: Reward
         constants=_faucet_constants,
         objects=_faucet_handle(site),
         reward_v2=reward,
+        reward_v1=reward_v1,
         moved_bodies=_FAUCET_MOVED,
     )
 
 
-FAUCET_OPEN = _faucet("faucet-open-v3", "handleStartOpen", +1.0, -0.05, rewards_v2.faucet_open)
-FAUCET_CLOSE = _faucet("faucet-close-v3", "handleStartClose", -1.0, -0.1, rewards_v2.faucet_close)
+FAUCET_OPEN = _faucet(
+    "faucet-open-v3", "handleStartOpen", +1.0, -0.05, rewards_v2.faucet_open, rewards_v1.faucet_open
+)
+FAUCET_CLOSE = _faucet(
+    "faucet-close-v3", "handleStartClose", -1.0, -0.1, rewards_v2.faucet_close, rewards_v1.faucet_close
+)
 
 # ---- dial-turn -----------------------------------------------------------------------------------
 
@@ -90,7 +97,68 @@ DIAL_TURN = TaskSpec(
     constants=_dial_constants,
     objects=_dial_objects,
     reward_v2=rewards_v2.dial_turn,
+    reward_v1=rewards_v1.dial_turn,
     moved_bodies=("dial",),
 )
 
-TASKS: tuple[TaskSpec, ...] = (FAUCET_OPEN, FAUCET_CLOSE, DIAL_TURN)
+# ---- lever-pull ----------------------------------------------------------------------------------
+
+# The lever's axis sits 12 cm to the side and 25 cm above its base; its handle is 20 cm out.
+_LEVER_AXIS = (0.12, 0.0, 0.25)
+_LEVER_RADIUS = 0.2
+
+
+# The handle mesh geom's frame in its link (MuJoCo quaternion, w first) as the reference's MuJoCo
+# 3.3.0 compiles it: the mesh's principal axes. The mesh is nearly symmetric, and newer MuJoCo
+# versions pick axes turned by about 1e-3 rad, which would show in the observed quaternion.
+_HANDLE_IN_LINK = (0.662500038723091, 0.662500038723091, -0.24717139537556432, 0.24717139537556432)
+
+
+def _rotation_matrix(q: jnp.ndarray) -> jnp.ndarray:
+    """The rotation matrix of a unit quaternion (w, x, y, z)."""
+    w, x, y, z = q
+    return jnp.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+        ]
+    )
+
+
+def _lever_objects(frame: Frame) -> tuple[jnp.ndarray, jnp.ndarray]:
+    # scipy's as_quat (x, y, z, w) of the handle geom's rotation, in the reference's mesh frame.
+    link = _rotation_matrix(frame.body_quat("lever_link1"))
+    handle = link @ _rotation_matrix(jnp.asarray(_HANDLE_IN_LINK, link.dtype))
+    return frame.site_pos("leverStart")[None], quat_from_xmat(handle)[None]
+
+
+def _lever_constants(frame: Frame, placement: Placement, settled: Frame) -> dict[str, jnp.ndarray]:
+    obj_init_pos = placement.moved_bodies["lever"]  # rand_vec: the lever base position
+    return {
+        "obj_init_pos": obj_init_pos,
+        "init_tcp": settled.tcp_center,
+        # The handle of the lowered lever, straight out in front of the axis.
+        "lever_pos_init": obj_init_pos + jnp.asarray(_LEVER_AXIS) + jnp.asarray((0.0, -_LEVER_RADIUS, 0.0)),
+        "max_pull_dist": jnp.linalg.norm(placement.target_pos - obj_init_pos),
+    }
+
+
+LEVER_PULL = TaskSpec(
+    name="lever-pull-v3",
+    scene="sawyer_lever_pull.xml",
+    hand_init_pos=(0.0, 0.4, 0.2),
+    random_low=(-0.1, 0.7, 0.0),
+    random_high=(0.1, 0.8, 0.0),
+    # The hand (and so goal and mocap) box reaches below the table: z from -0.15.
+    hand_low=(-0.5, 0.40, -0.15),
+    # No joint write: the lever keeps its settled angle. The goal is the raised handle, straight up.
+    place=place_fixture("lever", (_LEVER_AXIS[0], 0.0, _LEVER_AXIS[2] + _LEVER_RADIUS)),
+    constants=_lever_constants,
+    objects=_lever_objects,
+    reward_v2=rewards_v2.lever_pull,
+    reward_v1=rewards_v1.lever_pull,
+    moved_bodies=("lever",),
+)
+
+TASKS: tuple[TaskSpec, ...] = (FAUCET_OPEN, FAUCET_CLOSE, DIAL_TURN, LEVER_PULL)

@@ -5,6 +5,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 import json
+from collections.abc import Sequence
 from pathlib import Path
 
 import jax
@@ -49,9 +50,12 @@ class Replay:
     success: dict[str, np.ndarray]
 
 
-def replay_recorded_states(tasks: list[str], reward_version: str = "v2") -> Replay:
+def replay_recorded_states(
+    tasks: list[str], reward_version: str = "v2", reference_init_tcp: Sequence[str] = ()
+) -> Replay:
     """Loads each recorded post-step physics state into one batched env (one row per recorded
-    step), with the recorded previous observation as the stacked frame, and evaluates it.
+    step), with the recorded previous observation as the stacked frame, and evaluates it. Tasks in
+    `reference_init_tcp` get the reference's recorded `init_tcp` episode constant.
 
     Constants latched on an episode's first step are evaluated on each reset's first recorded
     step, then given to that reset's later steps (evaluated as steps > 0, so they keep them)."""
@@ -74,6 +78,10 @@ def replay_recorded_states(tasks: list[str], reward_version: str = "v2") -> Repl
         for t in order
     }
     state = jax.jit(env.with_physics_state)(state, recorded)
+    init_tcp = np.asarray(state.constants["init_tcp"])
+    for task in set(reference_init_tcp) & set(order):
+        init_tcp[env.task_rows(task)] = np.repeat(load(task)["const_init_tcp"], steps, axis=0)
+    state = dataclasses.replace(state, constants={**state.constants, "init_tcp": jnp.asarray(init_tcp)})
     actions = np.concatenate([rows(t, "action") for t in order])
     previous = [
         np.concatenate([load(t)["reset_obs"][:, None], load(t)["obs"][:, :-1]], axis=1) for t in order

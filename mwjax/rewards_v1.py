@@ -788,6 +788,3 @@ def handle_pull(step: StepInputs) -> tuple[Array, dict[str, Array]]:
     return _fixture_v1(
         step, press_dist, step.constants["max_pull_dist"], success_radius=0.05, left_finger_only=True
     )
-
-
-__all__ = ["Array", "StepInputs", "info_terms", "progress_reward"]

@@ -56,6 +56,7 @@ PEG_INSERT_SIDE = TaskSpec(
     constants=_constants,
     objects=_peg,
     reward_v2=rewards_v2.peg_insert_side,
+    reward_v1=rewards_v1.peg_insert_side,
     moved_bodies=("box",),
     rand_vec_valid=_peg_box_apart,
 )

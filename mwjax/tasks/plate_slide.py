@@ -7,7 +7,7 @@ from collections.abc import Sequence
 
 import jax.numpy as jnp
 
-from mwjax import rewards_v2
+from mwjax import rewards_v1, rewards_v2
 from mwjax.tasks.spec import ConstantsFn, Frame, PlaceFn, Placement, TaskSpec, quat_from_xmat
 
 HAND_INIT = (0.0, 0.6, 0.2)
@@ -36,8 +36,12 @@ def _place(slide: Sequence[float], net_pos: Sequence[float] | None) -> PlaceFn:
 def _constants(obj_init_pos: Sequence[float]) -> ConstantsFn:
     def constants(frame: Frame, placement: Placement, settled: Frame) -> dict[str, jnp.ndarray]:
         # obj_init_pos is rand_vec[:3] (obj_low == obj_high, so a constant), not the plate's
-        # actual position; init_tcp is taken at the end of _reset_hand.
-        return {"obj_init_pos": jnp.asarray(obj_init_pos, jnp.float32), "init_tcp": settled.tcp_center}
+        # actual position, which V1's maxDist reads; init_tcp is taken at the end of _reset_hand.
+        return {
+            "obj_init_pos": jnp.asarray(obj_init_pos, jnp.float32),
+            "init_tcp": settled.tcp_center,
+            "plate_init_pos": frame.geom_pos("puck"),
+        }
 
     return constants
 
@@ -54,6 +58,7 @@ PLATE_SLIDE = TaskSpec(
     constants=_constants((0.0, 0.6, 0.0)),
     objects=_plate,
     reward_v2=rewards_v2.plate_slide,
+    reward_v1=rewards_v1.plate_slide,
     moved_bodies=_MOVED,
 )
 
@@ -71,6 +76,7 @@ PLATE_SLIDE_SIDE = TaskSpec(
     constants=_constants((0.0, 0.6, 0.0)),
     objects=_plate,
     reward_v2=rewards_v2.plate_slide_side,
+    reward_v1=rewards_v1.plate_slide,
     moved_bodies=_MOVED,
 )
 
@@ -87,6 +93,7 @@ PLATE_SLIDE_BACK = TaskSpec(
     constants=_constants((0.0, 0.85, 0.0)),
     objects=_plate,
     reward_v2=rewards_v2.plate_slide_side,
+    reward_v1=rewards_v1.plate_slide_back,
     moved_bodies=_MOVED,
 )
 
@@ -103,6 +110,7 @@ PLATE_SLIDE_BACK_SIDE = TaskSpec(
     constants=_constants((-0.25, 0.6, 0.0)),
     objects=_plate,
     reward_v2=rewards_v2.plate_slide_side,
+    reward_v1=rewards_v1.plate_slide_back,
     moved_bodies=_MOVED,
 )
 

@@ -39,8 +39,8 @@ def _place_reach(rand_vec: jnp.ndarray, settled: Frame) -> Placement:
 
 
 def _reach_constants(frame: Frame, placement: Placement, settled: Frame) -> dict[str, jnp.ndarray]:
-    # The V2 in-place margin is measured from hand_init_pos (not init_tcp).
-    return {"hand_init_pos": jnp.asarray(REACH.hand_init_pos, jnp.float32)}
+    # The V2 in-place margin is measured from hand_init_pos; V1's maxReachDist from init_tcp.
+    return {"hand_init_pos": jnp.asarray(REACH.hand_init_pos, jnp.float32), "init_tcp": settled.tcp_center}
 
 
 def _place_push(rand_vec: jnp.ndarray, settled: Frame) -> Placement:
@@ -73,6 +73,7 @@ REACH = TaskSpec(
     constants=_reach_constants,
     objects=_puck,
     reward_v2=rewards_v2.reach,
+    reward_v1=rewards_v1.reach,
     rand_vec_valid=_goal_apart,
 )
 
@@ -88,6 +89,7 @@ PUSH = TaskSpec(
     constants=_puck_constants,
     objects=_puck,
     reward_v2=rewards_v2.push,
+    reward_v1=rewards_v1.push,
     rand_vec_valid=_goal_apart,
 )
 
@@ -104,6 +106,7 @@ PICK_PLACE = TaskSpec(
     constants=_puck_constants,
     objects=_puck,
     reward_v2=rewards_v2.pick_place,
+    reward_v1=rewards_v1.pick_place,
     rand_vec_valid=_goal_apart,
 )
 
@@ -119,6 +122,7 @@ REACH_WALL = TaskSpec(
     constants=_reach_constants,
     objects=_puck,
     reward_v2=rewards_v2.reach_wall,
+    reward_v1=rewards_v1.reach_wall,
     rand_vec_valid=_goal_apart,
 )
 
@@ -134,6 +138,7 @@ PUSH_WALL = TaskSpec(
     constants=_puck_constants,
     objects=_puck_geom,
     reward_v2=rewards_v2.push_wall,
+    reward_v1=rewards_v1.push_wall,
     rand_vec_valid=_goal_apart,
 )
 
@@ -149,6 +154,7 @@ PICK_PLACE_WALL = TaskSpec(
     constants=_puck_constants,
     objects=_puck_geom,
     reward_v2=rewards_v2.pick_place_wall,
+    reward_v1=rewards_v1.pick_place_wall,
     rand_vec_valid=_goal_apart,
 )
 
@@ -164,6 +170,7 @@ PUSH_BACK = TaskSpec(
     constants=_puck_constants,
     objects=_puck_geom,
     reward_v2=rewards_v2.push_back,
+    reward_v1=rewards_v1.push_back,
     rand_vec_valid=_goal_apart,
 )
 
@@ -209,6 +216,7 @@ SWEEP = TaskSpec(
     constants=_puck_constants,
     objects=_puck_body,
     reward_v2=rewards_v2.sweep,
+    reward_v1=rewards_v1.sweep,
 )
 
 SWEEP_INTO = TaskSpec(
@@ -223,6 +231,7 @@ SWEEP_INTO = TaskSpec(
     constants=_puck_constants,
     objects=_puck,
     reward_v2=rewards_v2.sweep_into,
+    reward_v1=rewards_v1.sweep_into,
     rand_vec_valid=_away_from_sweep_into_goal,
 )
 

@@ -107,8 +107,6 @@ class Env:
         self.envs_per_task = envs_per_task
 
         specs = [get_task(name) for name in names]
-        if reward_version == "v1" and (missing := [s.name for s in specs if s.reward_v1 is None]):
-            raise ValueError(f"no V1 reward ported yet for {missing}")
         scenes = list(dict.fromkeys(spec.scene for spec in specs))
         ordered = [spec for scene in scenes for spec in specs if spec.scene == scene]
         group_specs = [[s for s in ordered if s.scene == scene] for scene in scenes]

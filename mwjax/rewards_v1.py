@@ -24,6 +24,96 @@ def progress_reward(dist: Array, max_dist: Array, c2: float = 0.01, c3: float = 
     return 1000.0 * (max_dist - dist) + 1000.0 * (jnp.exp(-(dist**2) / c2) + jnp.exp(-(dist**2) / c3))
 
 
+# ---- shared V1 terms ----------------------------------------------------------------------------
+
+# V1 counts the fixture as reached once the fingers are within 5 cm of it.
+_REACHED = 0.05
+
+
+def _fixture_reward(
+    obj: Array,
+    finger: Array,
+    dist: Array,
+    max_dist: Array | float,
+    clip: bool = True,
+    c2: float = 0.01,
+    c3: float = 0.001,
+) -> Array:
+    """-reachDist, plus (clipped) `progress_reward` toward the goal once within 5 cm of the fixture."""
+    reach_dist = jnp.linalg.norm(obj - finger)
+    progress = progress_reward(dist, max_dist, c2, c3)
+    if clip:
+        progress = jnp.maximum(progress, 0.0)
+    return -reach_dist + jnp.where(reach_dist < _REACHED, progress, 0.0)
+
+
+def _fixture_info(reward: Array, dist: Array, success_radius: float) -> tuple[Array, dict[str, Array]]:
+    """evaluate_state on V1\'s `(reward, 0, 0, dist, 0, 0)`: always near, success on `dist`."""
+    return info_terms(
+        reward,
+        success=dist <= success_radius,
+        near_object=1.0,
+        grasp_reward=0.0,
+        in_place_reward=0.0,
+        obj_to_target=dist,
+    )
+
+
+def _fixture_v1(
+    step: StepInputs,
+    dist: Array,
+    max_dist: Array | float,
+    success_radius: float,
+    left_finger_only: bool = False,
+    clip: bool = True,
+    c2: float = 0.01,
+    c3: float = 0.001,
+) -> tuple[Array, dict[str, Array]]:
+    """Reach obs[4:7] with the tcp (or left fingertip), then progress `dist` toward 0."""
+    frame = step.frame
+    finger = frame.site_pos("leftEndEffector") if left_finger_only else frame.tcp_center
+    reward = _fixture_reward(step.obs[4:7], finger, dist, max_dist, clip, c2, c3)
+    return _fixture_info(reward, dist, success_radius)
+
+
+def _reach_v1(
+    step: StepInputs, obj: Array, z_ref: Array, xy_radius: float, z_weight: float, grip_radius: float
+) -> tuple[Array, Array]:
+    """V1\'s reach term (planar, then 3-d, then a grip bonus within `grip_radius`) and reachDist."""
+    tcp = step.frame.tcp_center
+    reach_dist = jnp.linalg.norm(obj - tcp)
+    reach_dist_xy = jnp.linalg.norm(obj[:2] - tcp[:2])
+    far = -reach_dist_xy - z_weight * jnp.abs(tcp[2] - z_ref)
+    reward = jnp.where(reach_dist_xy < xy_radius, -reach_dist, far)
+    gripping = -reach_dist + jnp.maximum(step.action[-1], 0.0) / 50.0
+    return jnp.where(reach_dist < grip_radius, gripping, reward), reach_dist
+
+
+def _dropped_v1(obj_z: Array, obj_height: Array, placing_dist: Array, reach_dist: Array) -> Array:
+    """V1's `objDropped`: back on its start height, away from the goal and from the gripper."""
+    return (obj_z < obj_height + 0.005) & (placing_dist > 0.02) & (reach_dist > 0.02)
+
+
+def _pick_v1(
+    full: Array,
+    obj_z: Array,
+    height_target: Array,
+    obj_height: Array,
+    reach_dist: Array,
+    reach_radius: float,
+    baseline: Array | float = 0.0,
+) -> Array:
+    """V1\'s `pickRew`: 100 * (height reached, capped at height_target, - baseline); full when `full`."""
+    lifting = (reach_dist < reach_radius) & (obj_z > obj_height + 0.005)
+    reached = jnp.where(lifting, jnp.minimum(height_target, obj_z) - baseline, 0.0)
+    return 100.0 * jnp.where(full, height_target - baseline, reached)
+
+
+def _place_v1(placing_dist: Array, max_placing_dist: Array) -> Array:
+    """V1's `placeRew`: `progress_reward` toward the goal, clipped at 0."""
+    return jnp.maximum(progress_reward(placing_dist, max_placing_dist), 0.0)
+
+
 # ---- reach, push, pick-place (and walls), push-back, sweep(-into), peg-insert-side, plate-slide --
 # None of these V1 rewards depends on history: `self.pickCompleted` / `self.reachCompleted` are
 # reassigned on every step before they are read.
@@ -173,58 +263,6 @@ def plate_slide_back(step: StepInputs) -> tuple[Array, dict[str, Array]]:
 
 # ---- door-open, drawer, buttons, window, handle-press-side, handle-pull-side, faucet, dial-turn ---
 
-# V1 counts the fixture as reached once the fingers are within 5 cm of it.
-_REACHED = 0.05
-
-
-def _fixture_reward(
-    obj: Array,
-    finger: Array,
-    dist: Array,
-    max_dist: Array | float,
-    clip: bool = True,
-    c2: float = 0.01,
-    c3: float = 0.001,
-) -> Array:
-    """The shared V1 fixture reward: -reachDist, plus `progress_reward` of the fixture toward its
-    goal once reached (0 before), clipped at 0 where the task clips it."""
-    reach_dist = jnp.linalg.norm(obj - finger)
-    progress = progress_reward(dist, max_dist, c2, c3)
-    if clip:
-        progress = jnp.maximum(progress, 0.0)
-    return -reach_dist + jnp.where(reach_dist < _REACHED, progress, 0.0)
-
-
-def _fixture_info(reward: Array, dist: Array, success_radius: float) -> tuple[Array, dict[str, Array]]:
-    """evaluate_state on V1's `(reward, 0, 0, dist, 0, 0)`: the zero tcp distance always counts as
-    near the object, and success is the fixture's distance to its goal."""
-    return info_terms(
-        reward,
-        success=dist <= success_radius,
-        near_object=1.0,
-        grasp_reward=0.0,
-        in_place_reward=0.0,
-        obj_to_target=dist,
-    )
-
-
-def _fixture_v1(
-    step: StepInputs,
-    dist: Array,
-    max_dist: Array | float,
-    success_radius: float,
-    left_finger_only: bool = False,
-    clip: bool = True,
-    c2: float = 0.01,
-    c3: float = 0.001,
-) -> tuple[Array, dict[str, Array]]:
-    """A V1 fixture task: reach obs[4:7] with the tcp (or, in some tasks, the left fingertip only),
-    then progress `dist` toward 0."""
-    frame = step.frame
-    finger = frame.site_pos("leftEndEffector") if left_finger_only else frame.tcp_center
-    reward = _fixture_reward(step.obs[4:7], finger, dist, max_dist, clip, c2, c3)
-    return _fixture_info(reward, dist, success_radius)
-
 
 def door_open(step: StepInputs) -> tuple[Array, dict[str, Array]]:
     """Pull the handle to the goal in xy (max_pull_dist: the closed handle's xy distance to the goal
@@ -343,46 +381,6 @@ def dial_turn(step: StepInputs) -> tuple[Array, dict[str, Array]]:
 
 
 # ---- assembly, disassemble, peg-unplug-side, pick-out-of-hole, shelf-place, bin-picking ----------
-
-
-def _reach_v1(
-    step: StepInputs, obj: Array, z_ref: Array, xy_radius: float, z_weight: float, grip_radius: float
-) -> tuple[Array, Array]:
-    """V1's reach term and the tcp-object distance: -distance once within `xy_radius` in the
-    plane, else -(planar distance + `z_weight` * the tcp's height change from `z_ref`); within
-    `grip_radius`, -distance plus a small bonus for closing the gripper."""
-    tcp = step.frame.tcp_center
-    reach_dist = jnp.linalg.norm(obj - tcp)
-    reach_dist_xy = jnp.linalg.norm(obj[:2] - tcp[:2])
-    far = -reach_dist_xy - z_weight * jnp.abs(tcp[2] - z_ref)
-    reward = jnp.where(reach_dist_xy < xy_radius, -reach_dist, far)
-    gripping = -reach_dist + jnp.maximum(step.action[-1], 0.0) / 50.0
-    return jnp.where(reach_dist < grip_radius, gripping, reward), reach_dist
-
-
-def _dropped_v1(obj_z: Array, obj_height: Array, placing_dist: Array, reach_dist: Array) -> Array:
-    """V1's `objDropped`: back on its start height, away from the goal and from the gripper."""
-    return (obj_z < obj_height + 0.005) & (placing_dist > 0.02) & (reach_dist > 0.02)
-
-
-def _pick_v1(
-    full: Array,
-    obj_z: Array,
-    height_target: Array,
-    obj_height: Array,
-    reach_dist: Array,
-    reach_radius: float,
-    baseline: Array | float = 0.0,
-) -> Array:
-    """V1's `pickRew`: 100 * (height_target - baseline) when `full`, else 100 * (the height reached,
-    capped at height_target, - baseline) while held within `reach_radius` off the start height."""
-    lifting = (reach_dist < reach_radius) & (obj_z > obj_height + 0.005)
-    reached = jnp.where(lifting, jnp.minimum(height_target, obj_z) - baseline, 0.0)
-    return 100.0 * jnp.where(full, height_target - baseline, reached)
-
-
-def _place_v1(placing_dist: Array, max_placing_dist: Array) -> Array:
-    return jnp.maximum(progress_reward(placing_dist, max_placing_dist), 0.0)
 
 
 def assembly(step: StepInputs) -> tuple[Array, dict[str, Array]]:
@@ -660,29 +658,15 @@ def box_close(step: StepInputs) -> tuple[Array, dict[str, Array]]:
     to the box. Markov: pickCompleted is recomputed from the current lid height every step."""
     c = step.constants
     lid, target = step.obs[4:7], step.target_pos
-    tcp = step.frame.tcp_center
     placing_dist = jnp.linalg.norm(lid - target)
-    reach_dist = jnp.linalg.norm(lid - tcp)
-    reach_dist_xy = jnp.linalg.norm(lid[:2] - tcp[:2])
-    z_rew = jnp.abs(tcp[2] - c["init_tcp"][2])
-    reach_rew = jnp.where(reach_dist_xy < 0.05, -reach_dist, -reach_dist_xy - 2.0 * z_rew)
-    grip_bonus = jnp.maximum(step.action[-1], 0.0) / 50.0
-    reach_rew = jnp.where(reach_dist < 0.05, -reach_dist + grip_bonus, reach_rew)
-
+    reach_rew, reach_dist = _reach_v1(step, lid, c["init_tcp"][2], 0.05, 2.0, 0.05)
     height_target, obj_height = c["height_target"], c["obj_height"]
     pick_completed = lid[2] >= height_target - 0.01
     # On the table, away from both the goal and the gripper.
-    dropped = (lid[2] < obj_height + 0.005) & (placing_dist > 0.02) & (reach_dist > 0.02)
-    lifting = (reach_dist < 0.1) & (lid[2] > obj_height + 0.005)
-    pick_rew = jnp.where(
-        pick_completed & ~dropped,
-        100.0 * height_target,
-        jnp.where(lifting, 100.0 * jnp.minimum(height_target, lid[2]), 0.0),
-    )
+    dropped = _dropped_v1(lid[2], obj_height, placing_dist, reach_dist)
+    pick_rew = _pick_v1(pick_completed & ~dropped, lid[2], height_target, obj_height, reach_dist, 0.1)
     placing = pick_completed & (reach_dist < 0.1) & ~dropped
-    place_rew = jnp.where(
-        placing, jnp.maximum(progress_reward(placing_dist, c["max_placing_dist"]), 0.0), 0.0
-    )
+    place_rew = jnp.where(placing, _place_v1(placing_dist, c["max_placing_dist"]), 0.0)
     reward = reach_rew + pick_rew + place_rew
     # V1's compute_reward reports zeros for every info term but success.
     return info_terms(reward, placing_dist < 0.08, 0.0, 0.0, 0.0, 0.0)
@@ -693,7 +677,7 @@ def coffee_button(step: StepInputs) -> tuple[Array, dict[str, Array]]:
     is the reset's |buttonStart y - goal y|, success within 2 cm."""
     button = step.obs[4:7]
     press_dist = jnp.abs(button[1] - step.target_pos[1])
-    reward = _reach_and_progress(
+    reward = _fixture_reward(
         button, step.frame.site_pos("leftEndEffector"), press_dist, step.constants["max_press_dist"]
     )
     # evaluate_state reads V1's zero tcp distance as near the object.
@@ -703,13 +687,6 @@ def coffee_button(step: StepInputs) -> tuple[Array, dict[str, Array]]:
 def _progress_once_reached(reach_dist: Array, dist: Array, max_dist: Array) -> Array:
     """`progress_reward` clipped at 0, counted only once the fingers are within 5 cm."""
     return jnp.where(reach_dist < 0.05, jnp.maximum(progress_reward(dist, max_dist), 0.0), 0.0)
-
-
-def _reach_and_progress(obj: Array, finger: Array, dist: Array, max_dist: Array) -> Array:
-    """-reachDist plus the clipped progress once reached: coffee-button's, coffee-push's and
-    lever-pull's V1 reward."""
-    reach_dist = jnp.linalg.norm(obj - finger)
-    return -reach_dist + _progress_once_reached(reach_dist, dist, max_dist)
 
 
 def _coffee_mug(step: StepInputs, reach_rew: Array, max_dist: Array) -> tuple[Array, dict[str, Array]]:
@@ -744,7 +721,7 @@ def lever_pull(step: StepInputs) -> tuple[Array, dict[str, Array]]:
     """Reach the lever's end, pull it to the goal above the axis (maxPullDist: |goal - lever base|)."""
     lever = step.obs[4:7]
     pull_dist = jnp.linalg.norm(lever - step.target_pos)
-    reward = _reach_and_progress(lever, step.frame.tcp_center, pull_dist, step.constants["max_pull_dist"])
+    reward = _fixture_reward(lever, step.frame.tcp_center, pull_dist, step.constants["max_pull_dist"])
     # Quirk: evaluate_state reads V1's pull distance as lever_error, so success is
     # pull_dist <= pi/24 (a distance against an angle threshold); its zero shoulder distance
     # counts as near the object and is reported as obj_to_target.

@@ -151,6 +151,23 @@ def info_terms(
     return reward, {k: jnp.asarray(v, jnp.float32) for k, v in info.items()}
 
 
+def funnel_floor(radius: Array, threshold: float, scale: float, height: float) -> Array:
+    """A log funnel's floor at `radius` off its axis: 0 within `threshold`, else scale * log + height."""
+    # The reference takes the log only outside the threshold (a Python `if`).
+    return jnp.where(
+        radius > threshold, scale * jnp.log(jnp.maximum(radius - threshold, 1e-30)) + height, 0.0
+    )
+
+
+def above_floor_term(z: Array, floor: Array, margin: Array | float) -> Array:
+    """1 at or above `floor`, else a long-tail tolerance of the depth below it over `margin`."""
+    return jnp.where(
+        z >= floor,
+        1.0,
+        tolerance(jnp.maximum(floor - z, 0.0), bounds=(0.0, 0.01), margin=margin, sigmoid="long_tail"),
+    )
+
+
 def _pick_place_caging(step: StepInputs, obj_pos: Array) -> Array:
     """pick-place's own `_gripper_caging_reward` override (y caging from the live pad positions).
 
@@ -496,14 +513,8 @@ def door_open(step: StepInputs) -> tuple[Array, dict[str, Array]]:
     reward_grab = (jnp.clip(step.action[3], -1.0, 1.0) + 1.0) / 2.0
 
     threshold = 0.12
-    radius = jnp.linalg.norm(hand[:2] - door[:2])
-    # The reference takes the log only when radius > threshold (a Python `if`).
-    floor = jnp.where(radius <= threshold, 0.0, 0.04 * jnp.log(jnp.maximum(radius - threshold, 1e-30)) + 0.4)
-    above_floor = jnp.where(
-        hand[2] >= floor,
-        1.0,
-        tolerance(floor - hand[2], bounds=(0.0, 0.01), margin=floor / 2.0, sigmoid="long_tail"),
-    )
+    floor = funnel_floor(jnp.linalg.norm(hand[:2] - door[:2]), threshold, 0.04, 0.4)
+    above_floor = above_floor_term(hand[2], floor, margin=floor / 2.0)
     in_place = tolerance(
         jnp.linalg.norm(hand - door - jnp.array([0.05, 0.03, -0.01])),
         bounds=(0.0, threshold / 2.0),
@@ -1121,23 +1132,6 @@ def peg_unplug_side(step: StepInputs) -> tuple[Array, dict[str, Array]]:
     )
 
 
-def _funnel_floor(radius: Array, scale: float, height: float) -> Array:
-    """The floor of a 3D funnel at `radius` from its axis, which keeps the hand off bin and hole
-    edges: 0 within 3 cm, else `scale * log(radius - 0.03) + height`."""
-    threshold = 0.03
-    return jnp.where(
-        radius > threshold, scale * jnp.log(jnp.maximum(radius - threshold, 1e-30)) + height, 0.0
-    )
-
-
-def _above_floor(z: Array, floor: Array, margin: float) -> Array:
-    return jnp.where(
-        z >= floor,
-        1.0,
-        tolerance(jnp.maximum(floor - z, 0.0), bounds=(0.0, 0.01), margin=margin, sigmoid="long_tail"),
-    )
-
-
 def pick_out_of_hole(step: StepInputs) -> tuple[Array, dict[str, Array]]:
     """`SawyerPickOutOfHoleEnvV3.compute_reward` (v2): grasp the peg in the hole, lift it out to
     the goal while the tcp stays above a funnel around the hole."""
@@ -1147,8 +1141,8 @@ def pick_out_of_hole(step: StepInputs) -> tuple[Array, dict[str, Array]]:
     obj_init_pos = step.constants["obj_init_pos"]
     obj_to_target = jnp.linalg.norm(obj - target)
     tcp_to_obj = jnp.linalg.norm(obj - tcp)
-    floor = _funnel_floor(jnp.linalg.norm(tcp[:2] - obj_init_pos[:2]), 0.015, 0.15)
-    above_floor = _above_floor(tcp[2], floor, margin=0.02)
+    floor = funnel_floor(jnp.linalg.norm(tcp[:2] - obj_init_pos[:2]), 0.03, 0.015, 0.15)
+    above_floor = above_floor_term(tcp[2], floor, margin=0.02)
     object_grasped = gripper_caging(
         step,
         obj,
@@ -1242,10 +1236,10 @@ def bin_picking(step: StepInputs) -> tuple[Array, dict[str, Array]]:
         sigmoid="long_tail",
     )
     floor = jnp.minimum(
-        _funnel_floor(jnp.linalg.norm(hand[:2] - obj_init_pos[:2]), 0.02, 0.2),
-        _funnel_floor(jnp.linalg.norm(hand[:2] - target[:2]), 0.02, 0.2),
+        funnel_floor(jnp.linalg.norm(hand[:2] - obj_init_pos[:2]), 0.03, 0.02, 0.2),
+        funnel_floor(jnp.linalg.norm(hand[:2] - target[:2]), 0.03, 0.02, 0.2),
     )
-    above_floor = _above_floor(hand[2], floor, margin=0.05)
+    above_floor = above_floor_term(hand[2], floor, margin=0.05)
     object_grasped = gripper_caging(
         step,
         obj,
@@ -1583,17 +1577,6 @@ def hand_insert(step: StepInputs) -> tuple[Array, dict[str, Array]]:
 # ---- box-close, coffee-button, coffee-pull, coffee-push, lever-pull ------------------------------
 
 
-def above_funnel_floor(hand: Array, center: Array, threshold: float) -> Array:
-    """1 while the hand is above a log-shaped funnel floor centred on `center` (flat at 0 within
-    `threshold` in the plane), a long-tail penalty below it. door-open's and box-close's
-    `above_floor` term; the reference takes the log only outside the threshold (a Python `if`)."""
-    radius = jnp.linalg.norm(hand[:2] - center[:2])
-    outside = radius > threshold
-    floor = jnp.where(outside, 0.04 * jnp.log(jnp.where(outside, radius - threshold, 1.0)) + 0.4, 0.0)
-    below = tolerance(floor - hand[2], bounds=(0.0, 0.01), margin=floor / 2.0, sigmoid="long_tail")
-    return jnp.where(hand[2] >= floor, 1.0, below)
-
-
 def box_close(step: StepInputs) -> tuple[Array, dict[str, Array]]:
     """`SawyerBoxCloseEnvV3.compute_reward` (v2): reach the lid's handle from above with the
     gripper closing, put the lid on the box, all scaled by how upright the lid is."""
@@ -1603,7 +1586,8 @@ def box_close(step: StepInputs) -> tuple[Array, dict[str, Array]]:
     reward_grab = jnp.clip((jnp.clip(step.action[3], -1.0, 1.0) + 1.0) / 2.0, 0.0, 1.0)
     # The lid's xquat (w, x, y, z) against the upright (0.707, 0, 0, 0.707), linearly.
     upright = jnp.maximum(1.0 - jnp.linalg.norm(obs[7:11] - jnp.array([0.707, 0.0, 0.0, 0.707])) / 0.2, 0.0)
-    above_floor = above_funnel_floor(hand, lid, 0.02)
+    floor = funnel_floor(jnp.linalg.norm(hand[:2] - lid[:2]), 0.02, 0.04, 0.4)
+    above_floor = above_floor_term(hand[2], floor, margin=floor / 2.0)
     in_place = tolerance(jnp.linalg.norm(hand - lid), bounds=(0.0, 0.02), margin=0.5, sigmoid="long_tail")
     ready_to_lift = hamacher_product(above_floor, in_place)
     placed = tolerance(

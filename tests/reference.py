@@ -78,7 +78,7 @@ def replay_recorded_states(
         for t in order
     }
     state = jax.jit(env.with_physics_state)(state, recorded)
-    init_tcp = np.asarray(state.constants["init_tcp"])
+    init_tcp = np.array(state.constants["init_tcp"])
     for task in set(reference_init_tcp) & set(order):
         init_tcp[env.task_rows(task)] = np.repeat(load(task)["const_init_tcp"], steps, axis=0)
     state = dataclasses.replace(state, constants={**state.constants, "init_tcp": jnp.asarray(init_tcp)})

@@ -9,6 +9,7 @@ import pytest
 
 import mwjax
 from mwjax.benchmarks import MT10
+from mwjax.tasks import TASKS as TASKS_REGISTRY
 
 TASKS = ["reach-v3", "drawer-open-v3", "drawer-close-v3"]  # two share a scene
 HORIZON = 3
@@ -149,3 +150,8 @@ def test_nan_action_under_jit_is_a_flagged_noop(env, compiled, episode):
 
 def test_mt10_task_order():
     assert mwjax.benchmarks.task_names("MT10") == MT10
+
+
+def test_mt50_is_every_task():
+    names = mwjax.benchmarks.task_names("MT50")
+    assert len(names) == 50 and set(names) == set(TASKS_REGISTRY)

@@ -17,7 +17,6 @@ from mwjax.tasks import TASKS
 
 # Every ported task that has a reference recording; MT10 must be among them.
 PORTED = [task for task in recorded_tasks() if task in TASKS]
-PORTED_V1 = [task for task in PORTED if TASKS[task].reward_v1 is not None]
 
 OBS_TOL = 1e-5
 REWARD_TOL = 1e-4
@@ -67,6 +66,13 @@ ENGINE_VERSION_DRIFT = {
     # is static (weld id 0), so those contacts push the door closed; our frame is a mocap body (its
     # own weld root), and MuJoCo's parent-child filter drops the contacts.
     "door-close-v3": 0.1,
+    # Same family, unconfirmed: the lever rests against the moved box, whose parent-child contacts
+    # MuJoCo filters in our scene and not in the reference's; the drift peaks at step 7, then decays.
+    "handle-press-v3": 2e-2,
+    # coffee's reset zeroes qvel[9:15], which in this scene are arm joints (reproduced): the arm,
+    # still settling, is stopped mid-motion and lurches in the first steps (peak at step 3).
+    "coffee-pull-v3": 3e-2,
+    "coffee-push-v3": 3e-2,
 }
 
 
@@ -82,7 +88,7 @@ def replay():
 
 @pytest.fixture(scope="module")
 def replay_v1():
-    return replay_recorded_states(PORTED_V1, "v1", reference_init_tcp=list(HISTORY_DEPENDENT_SETTLE))
+    return replay_recorded_states(PORTED, "v1", reference_init_tcp=list(HISTORY_DEPENDENT_SETTLE))
 
 
 @pytest.fixture(scope="module")
@@ -134,14 +140,19 @@ def test_success_given_state(task, replay):
     np.testing.assert_array_equal(replay.success[task], load(task)["success_v2"] > 0)
 
 
-@pytest.mark.parametrize("task", PORTED_V1)
+@pytest.mark.parametrize("task", PORTED)
 def test_reward_v1_given_state(task, replay_v1):
     _assert_rewards_match(replay_v1.reward[task], load(task)["reward_v1"])
 
 
-@pytest.mark.parametrize("task", PORTED_V1)
+@pytest.mark.parametrize("task", PORTED)
 def test_success_v1_given_state(task, replay_v1):
     np.testing.assert_array_equal(replay_v1.success[task], load(task)["success_v1"] > 0)
+
+
+# box-close and door-lock run 5 physics substeps inside their reset (float32 Warp here, float64
+# MuJoCo 3.3.0 there), so their reset state is compared like a free-run step: (qpos, qvel) bounds.
+PHYSICS_IN_RESET_TOL = (1e-4, 1e-2)
 
 
 def _comparable_resets(task: str) -> slice:
@@ -153,9 +164,10 @@ def test_reset_state(task, free_run):
     env, state, _ = free_run
     kin = env.kinematics(state, task)
     resets = _comparable_resets(task)
-    np.testing.assert_allclose(np.asarray(kin.qpos)[resets], load(task)["reset_qpos"][resets], atol=1e-6)
+    qpos_tol, qvel_tol = PHYSICS_IN_RESET_TOL if TASKS[task].reset_env_steps else (1e-6, 1e-5)
+    np.testing.assert_allclose(np.asarray(kin.qpos)[resets], load(task)["reset_qpos"][resets], atol=qpos_tol)
     np.testing.assert_allclose(
-        np.asarray(kin.qvel)[resets], load(task)["reset_qvel"][resets], atol=1e-5, rtol=1e-6
+        np.asarray(kin.qvel)[resets], load(task)["reset_qvel"][resets], atol=qvel_tol, rtol=1e-6
     )
 
 

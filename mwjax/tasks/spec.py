@@ -177,7 +177,7 @@ class TaskSpec:
     place: PlaceFn
     objects: ObjectsFn
     reward_v2: RewardFn
-    reward_v1: RewardFn | None = None
+    reward_v1: RewardFn
     constants: ConstantsFn = _no_constants
     # Constants the reference sets on the first step of an episode; `constants` must give each
     # key a placeholder of the same shape at reset.

@@ -41,10 +41,22 @@ def _fixture_reward(
 ) -> Array:
     """-reachDist, plus (clipped) `progress_reward` toward the goal once within 5 cm of the fixture."""
     reach_dist = jnp.linalg.norm(obj - finger)
+    return -reach_dist + _progress_once_reached(reach_dist, dist, max_dist, clip, c2, c3)
+
+
+def _progress_once_reached(
+    reach_dist: Array,
+    dist: Array,
+    max_dist: Array | float,
+    clip: bool = True,
+    c2: float = 0.01,
+    c3: float = 0.001,
+) -> Array:
+    """`progress_reward` (clipped at 0 unless `clip` is off), counted only within 5 cm."""
     progress = progress_reward(dist, max_dist, c2, c3)
     if clip:
         progress = jnp.maximum(progress, 0.0)
-    return -reach_dist + jnp.where(reach_dist < _REACHED, progress, 0.0)
+    return jnp.where(reach_dist < _REACHED, progress, 0.0)
 
 
 def _fixture_info(reward: Array, dist: Array, success_radius: float) -> tuple[Array, dict[str, Array]]:
@@ -682,11 +694,6 @@ def coffee_button(step: StepInputs) -> tuple[Array, dict[str, Array]]:
     )
     # evaluate_state reads V1's zero tcp distance as near the object.
     return info_terms(reward, press_dist <= 0.02, 1.0, 0.0, 0.0, press_dist)
-
-
-def _progress_once_reached(reach_dist: Array, dist: Array, max_dist: Array) -> Array:
-    """`progress_reward` clipped at 0, counted only once the fingers are within 5 cm."""
-    return jnp.where(reach_dist < 0.05, jnp.maximum(progress_reward(dist, max_dist), 0.0), 0.0)
 
 
 def _coffee_mug(step: StepInputs, reach_rew: Array, max_dist: Array) -> tuple[Array, dict[str, Array]]:

@@ -1,0 +1,3 @@
+"""Experts for the assembly family (see mwjax/tasks/assembly.py)."""
+
+from __future__ import annotations

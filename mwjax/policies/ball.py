@@ -1,0 +1,3 @@
+"""Experts for the ball family (see mwjax/tasks/ball.py)."""
+
+from __future__ import annotations

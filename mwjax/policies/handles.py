@@ -1,0 +1,3 @@
+"""Experts for the handles family (see mwjax/tasks/handles.py)."""
+
+from __future__ import annotations

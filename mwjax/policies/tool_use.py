@@ -1,0 +1,3 @@
+"""Experts for the tool_use family (see mwjax/tasks/tool_use.py)."""
+
+from __future__ import annotations

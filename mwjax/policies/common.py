@@ -62,6 +62,12 @@ def xy_dist(a: Array, b: Array) -> Array:
     return jnp.linalg.norm(a[:2] - b[:2])
 
 
+def near(a: Array, b: Array, xy_tol: float, z_tol: float) -> Array:
+    """Whether `a` is within `xy_tol` of `b` in the xy plane and within `z_tol` in height: the
+    reference's usual grab test, `not (xy_dist > xy_tol or |dz| > z_tol)`."""
+    return (xy_dist(a, b) <= xy_tol) & (jnp.abs(a[2] - b[2]) <= z_tol)
+
+
 def action(delta_pos: Array, grab_effort: Array | float) -> Array:
     return jnp.concatenate([delta_pos, jnp.reshape(jnp.asarray(grab_effort, delta_pos.dtype), (1,))]).astype(
         jnp.float32

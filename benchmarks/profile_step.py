@@ -53,7 +53,7 @@ def main() -> None:
     per_task = args.batch // len(task_names(args.set))
 
     env = mwjax.make(args.set, envs_per_task=per_task)
-    plain = mwjax.make(args.set, envs_per_task=per_task, autoreset=False)
+    plain = mwjax.make(args.set, envs_per_task=per_task, autoreset="disabled")
     fast = mwjax.make(args.set, envs_per_task=per_task, physics=mwjax.PhysicsConfig.fast())
 
     def action_and_physics(state: mwjax.State, action: jax.Array) -> mwjax.State:

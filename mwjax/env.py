@@ -18,7 +18,7 @@ import jax.numpy as jnp
 import numpy as np
 from mujoco import mjx
 
-from mwjax.benchmarks import sample_goal_variants, task_names
+from mwjax import benchmarks
 from mwjax.physics import Physics, PhysicsConfig
 from mwjax.tasks import get_task
 from mwjax.tasks.spec import Frame, Kinematics, Placement, StepInputs, TaskSpec
@@ -34,6 +34,8 @@ _HAND_QUAT = np.array([1.0, 0.0, 1.0, 0.0], np.float32)
 _ACTION_SCALE = 1.0 / 100
 # The float info terms every V2 kernel reports besides `success`.
 _REWARD_INFO = ("near_object", "grasp_reward", "in_place_reward", "obj_to_target", "unscaled_reward")
+AUTORESET_MODES = ("same_step", "next_step", "disabled")
+GOAL_SAMPLING = ("on_reset", "on_request")
 
 
 @jax.tree_util.register_dataclass
@@ -48,9 +50,18 @@ class State:
     truncated: Array
     info: dict[str, Array]
     steps: Array
+    episode_return: Array
     target_pos: Array
     constants: dict[str, Array]
+    # Each env's goal variants in the order it visits them, and where it is in that order.
+    goal_order: Array
+    goal_cursor: Array
     key: Array
+
+    @property
+    def variant(self) -> Array:
+        """The goal variant (index into `env.goal_variants[task]`) of every env's episode."""
+        return jnp.take_along_axis(self.goal_order, self.goal_cursor[:, None], axis=1)[:, 0]
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -84,26 +95,50 @@ class Env:
 
     def __init__(
         self,
-        tasks: str | Sequence[str],
+        tasks: str | Sequence[str] | benchmarks.Benchmark,
         envs_per_task: int,
         seed: int = 0,
         reward_version: str = "v2",
-        partially_observable: bool = False,
+        split: str = "train",
+        task: str | None = None,
+        partially_observable: bool | None = None,
         max_episode_steps: int = MAX_EPISODE_STEPS,
-        autoreset: bool = True,
+        autoreset: str = "same_step",
+        terminate_on_success: bool = False,
+        goal_sampling: str | None = None,
+        variants_per_task: int | None = None,
         physics: PhysicsConfig | None = None,
     ) -> None:
         if reward_version not in ("v1", "v2"):
             raise ValueError(f"reward_version must be 'v1' or 'v2', got {reward_version!r}")
         if not isinstance(envs_per_task, int) or envs_per_task < 1:
             raise ValueError(f"envs_per_task must be a positive int, got {envs_per_task!r}")
-        if max_episode_steps < 1:
-            raise ValueError(f"max_episode_steps must be positive, got {max_episode_steps}")
-        names = task_names(tasks)
+        if not isinstance(max_episode_steps, int) or max_episode_steps < 1:
+            raise ValueError(f"max_episode_steps must be a positive int, got {max_episode_steps!r}")
+        if autoreset not in AUTORESET_MODES:
+            raise ValueError(f"autoreset must be one of {AUTORESET_MODES}, got {autoreset!r}")
+        bench = benchmarks.benchmark(tasks, task)
+        names = bench.tasks(split)
+        variants = benchmarks.goal_variants(bench, seed, split)
+        if goal_sampling is None:
+            goal_sampling = "on_request" if bench.meta_learning else "on_reset"
+        if goal_sampling not in GOAL_SAMPLING:
+            raise ValueError(f"goal_sampling must be one of {GOAL_SAMPLING}, got {goal_sampling!r}")
+        n_variants = benchmarks.N_GOALS if variants_per_task is None else variants_per_task
+        if not isinstance(n_variants, int) or not 1 <= n_variants <= benchmarks.N_GOALS:
+            raise ValueError(
+                f"variants_per_task must be an int in [1, {benchmarks.N_GOALS}], got {n_variants!r}"
+            )
+        self.benchmark = bench
+        self.split = split
         self.reward_version = reward_version
-        self.partially_observable = partially_observable
+        self.partially_observable = (
+            bench.meta_learning if partially_observable is None else partially_observable
+        )
         self.max_episode_steps = max_episode_steps
         self.autoreset = autoreset
+        self.terminate_on_success = terminate_on_success
+        self.goal_sampling = goal_sampling
         self.envs_per_task = envs_per_task
 
         specs = [get_task(name) for name in names]
@@ -145,8 +180,7 @@ class Env:
         self.task_names = tuple(name for name in self.task_list for _ in range(envs_per_task))
         self.task_ids = np.repeat(np.arange(len(rows)), envs_per_task)
 
-        variants = sample_goal_variants(names, seed)
-        self.goal_variants = {name: variants[name] for name in self.task_list}
+        self.goal_variants = {name: variants[name][:n_variants] for name in self.task_list}
         width = max(v.shape[1] for v in variants.values())
         self._variants = jnp.asarray(
             np.stack(
@@ -162,15 +196,53 @@ class Env:
         self._mocap_high = per_env([r.spec.mocap_bounds[1] for r in rows])
         self._goal_low = per_env([r.spec.goal_bounds[0] for r in rows])
         self._goal_high = per_env([r.spec.goal_bounds[1] for r in rows])
+        self._goal_pools, self._goal_pool_sizes = _goal_pools(
+            goal_sampling, envs_per_task, n_variants, len(rows)
+        )
 
     # ----------------------------------------------------------------------------------------
     # Public functional API
 
     def reset(self, key: Array) -> State:
-        """A fresh episode in every env; each env draws its goal variant from its own key."""
+        """A fresh episode in every env, each from its own key. With `goal_sampling="on_reset"`
+        (MT sets) every env draws one of its task's goal variants; with `"on_request"` (ML sets)
+        every env shuffles its own share of them and starts on the first."""
         keys = jax.random.split(key, self.num_envs)
-        rand_vecs, keys = self._draw_variants(keys)
-        return self._reset_rows(self.physics.make_data(), rand_vecs, keys, jnp.ones(self.num_envs, bool))
+        order, keys = self._shuffled_pools(keys)
+        cursor = jnp.zeros(self.num_envs, jnp.int32)
+        if self.goal_sampling == "on_reset":
+            cursor, keys = self._draw_cursor(keys)
+        return self._start(order, cursor, keys)
+
+    def reset_with_variants(self, variants: Array, key: Array | None = None) -> State:
+        """A fresh episode in every env on the given goal variants (`(num_envs,)` indices into
+        `env.goal_variants[task]`), e.g. one episode per variant for evaluation."""
+        variants = jnp.asarray(variants, jnp.int32)
+        if variants.shape != (self.num_envs,):
+            raise ValueError(f"variants must have shape ({self.num_envs},), got {variants.shape}")
+        if not isinstance(variants, jax.core.Tracer):
+            n = self._variants.shape[1]
+            if not bool(jnp.all((variants >= 0) & (variants < n))):
+                raise ValueError(f"variants must lie in [0, {n})")
+        keys = jax.random.split(jax.random.key(0) if key is None else key, self.num_envs)
+        order = jnp.broadcast_to(
+            jnp.arange(self._variants.shape[1], dtype=jnp.int32), (self.num_envs, self._variants.shape[1])
+        )
+        return self._start(order, variants, keys)
+
+    def sample_goals(self, state: State) -> State:
+        """Every env moves on to its next goal variant and starts a fresh episode (the reference's
+        `sample_tasks` of ML envs: each env cycles through its own share of the variants in a
+        shuffled order, reshuffling when it has used them all). With `goal_sampling="on_reset"`
+        every env draws a new variant, as at any reset."""
+        if self.goal_sampling == "on_reset":
+            cursor, keys = self._draw_cursor(state.key)
+            return self._start(state.goal_order, cursor, keys)
+        cursor = state.goal_cursor + 1
+        wrapped = cursor >= self._goal_pool_sizes
+        reshuffled, keys = self._shuffled_pools(state.key)
+        order = _select(wrapped, reshuffled, state.goal_order)
+        return self._start(order, jnp.where(wrapped, 0, cursor), keys)
 
     def reset_to(self, rand_vecs: Array, key: Array | None = None) -> State:
         """A fresh episode in every env with the given goal variants (`(num_envs, d)`, the
@@ -181,7 +253,24 @@ class Env:
                 f"rand_vecs must have shape {(self.num_envs, self._variants.shape[2])}, got {rand_vecs.shape}"
             )
         keys = jax.random.split(jax.random.key(0) if key is None else key, self.num_envs)
-        return self._reset_rows(self.physics.make_data(), rand_vecs, keys, jnp.ones(self.num_envs, bool))
+        order, keys = self._shuffled_pools(keys)
+        cursor = jnp.zeros(self.num_envs, jnp.int32)
+        all_rows = jnp.ones(self.num_envs, bool)
+        return self._reset_rows(self.physics.make_data(), rand_vecs, order, cursor, keys, all_rows)
+
+    def observation_bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """The reference's observation box (hand box, gripper [-1, 1], unbounded objects, goal
+        box or zeros when hidden), widened over the set's tasks, whose goal boxes differ."""
+        if self.partially_observable:
+            goal_low = goal_high = np.zeros(3, np.float32)
+        else:
+            goal_low = np.min(np.asarray(self._goal_low), axis=0)
+            goal_high = np.max(np.asarray(self._goal_high), axis=0)
+        frame_low = np.concatenate([_HAND_SPACE_LOW, [-1.0], np.full(_OBJECT_OBS, -np.inf)])
+        frame_high = np.concatenate([_HAND_SPACE_HIGH, [1.0], np.full(_OBJECT_OBS, np.inf)])
+        low = np.concatenate([frame_low, frame_low, goal_low]).astype(np.float32)
+        high = np.concatenate([frame_high, frame_high, goal_high]).astype(np.float32)
+        return low, high
 
     def task_rows(self, task: str) -> slice:
         """The rows of `task` in the env batch."""
@@ -230,8 +319,11 @@ class Env:
         obs, reward, info, constants = self._observe_and_reward(kin, state, action)
         info["invalid_action"] = ~valid
         steps = state.steps + 1
+        episode_return = state.episode_return + reward
+        info["episode_return"] = episode_return
+        info["episode_length"] = steps
         truncated = steps >= self.max_episode_steps
-        terminated = jnp.zeros_like(truncated)
+        terminated = info["success"] if self.terminate_on_success else jnp.zeros_like(truncated)
         stepped = dataclasses.replace(
             state,
             physics=datas,
@@ -241,14 +333,23 @@ class Env:
             truncated=truncated,
             info=info,
             steps=steps,
+            episode_return=episode_return,
             constants=constants,
         )
         done = terminated | truncated
-        if not self.autoreset:
-            return self._with_final(stepped, done)
-        return jax.lax.cond(
-            jnp.any(done), lambda s: self._autoreset(s, done), lambda s: self._with_final(s, done), stepped
-        )
+        if self.autoreset == "same_step":
+            return jax.lax.cond(
+                jnp.any(done),
+                lambda s: self._autoreset(s, done),
+                lambda s: self._with_final(s, done),
+                stepped,
+            )
+        stepped = self._with_final(stepped, done)
+        if self.autoreset == "disabled":
+            return stepped
+        # NEXT_STEP: an env whose episode ended at the previous call starts a new one instead.
+        ended = state.terminated | state.truncated
+        return jax.lax.cond(jnp.any(ended), lambda s: self._restart(s, ended), lambda s: s, stepped)
 
     def _task(self, task: str) -> _TaskRows:
         for rows in self._rows:
@@ -259,13 +360,39 @@ class Env:
     # ----------------------------------------------------------------------------------------
     # Reset
 
-    def _draw_variants(self, keys: Array) -> tuple[Array, Array]:
-        """Each env picks one of its task's goal variants; returns them and the envs' next keys."""
+    def _shuffled_pools(self, keys: Array) -> tuple[Array, Array]:
+        """Each env's pool of goal variants in a fresh random order (padding last), and next keys."""
         split = jax.vmap(jax.random.split)(keys)
-        index = jax.vmap(lambda k: jax.random.randint(k, (), 0, self._variants.shape[1]))(split[:, 0])
-        return self._variants[jnp.asarray(self.task_ids), index], split[:, 1]
+        size = self._goal_pools.shape[1]
+        noise = jax.vmap(lambda k: jax.random.uniform(k, (size,)))(split[:, 0])
+        noise = jnp.where(jnp.arange(size) < self._goal_pool_sizes[:, None], noise, 2.0)
+        order = jnp.take_along_axis(self._goal_pools, jnp.argsort(noise, axis=1), axis=1)
+        return order, split[:, 1]
 
-    def _reset_rows(self, datas: tuple[mjx.Data, ...], rand_vecs: Array, keys: Array, done: Array) -> State:
+    def _draw_cursor(self, keys: Array) -> tuple[Array, Array]:
+        """A uniform position in each env's pool (the reference's MT `RandomTaskSelectWrapper`)."""
+        split = jax.vmap(jax.random.split)(keys)
+        cursor = jax.vmap(lambda k, n: jax.random.randint(k, (), 0, n))(split[:, 0], self._goal_pool_sizes)
+        return cursor.astype(jnp.int32), split[:, 1]
+
+    def _rand_vecs(self, order: Array, cursor: Array) -> Array:
+        variant = jnp.take_along_axis(order, cursor[:, None], axis=1)[:, 0]
+        return self._variants[jnp.asarray(self.task_ids), variant]
+
+    def _start(self, order: Array, cursor: Array, keys: Array) -> State:
+        rand_vecs = self._rand_vecs(order, cursor)
+        all_rows = jnp.ones(self.num_envs, bool)
+        return self._reset_rows(self.physics.make_data(), rand_vecs, order, cursor, keys, all_rows)
+
+    def _reset_rows(
+        self,
+        datas: tuple[mjx.Data, ...],
+        rand_vecs: Array,
+        goal_order: Array,
+        goal_cursor: Array,
+        keys: Array,
+        done: Array,
+    ) -> State:
         """Fresh episodes in the rows where `done`; the other rows' physics is kept as is."""
         placements: list[Placement] = []
         new_datas = list(datas)
@@ -304,6 +431,8 @@ class Env:
         info = {name: zeros for name in _REWARD_INFO}
         info["success"] = jnp.zeros(self.num_envs, bool)
         info["invalid_action"] = jnp.zeros(self.num_envs, bool)
+        info["episode_return"] = zeros
+        info["episode_length"] = jnp.zeros(self.num_envs, jnp.int32)
         info["final_obs"] = obs
         return State(
             physics=datas,
@@ -313,8 +442,11 @@ class Env:
             truncated=jnp.zeros(self.num_envs, bool),
             info=info,
             steps=jnp.zeros(self.num_envs, jnp.int32),
+            episode_return=zeros,
             target_pos=target,
             constants=_merge_constants(constant_parts, [r.size for r in self._rows]),
+            goal_order=goal_order,
+            goal_cursor=goal_cursor,
             key=keys,
         )
 
@@ -395,9 +527,18 @@ class Env:
         }
         return data.replace(time=jnp.where(done, 0.0, data.time), **fields)
 
+    def _fresh(self, state: State, done: Array) -> State:
+        """New episodes in the `done` rows (a new goal variant if `goal_sampling="on_reset"`)."""
+        cursor, keys = state.goal_cursor, state.key
+        if self.goal_sampling == "on_reset":
+            cursor, keys = self._draw_cursor(keys)
+        rand_vecs = self._rand_vecs(state.goal_order, cursor)
+        return self._reset_rows(state.physics, rand_vecs, state.goal_order, cursor, keys, done)
+
     def _autoreset(self, state: State, done: Array) -> State:
-        rand_vecs, keys = self._draw_variants(state.key)
-        fresh = self._reset_rows(state.physics, rand_vecs, keys, done)
+        """SAME_STEP: the `done` rows carry the next episode's start, their step's reward, flags
+        and info stay (they are the finished episode's final info), `final_obs` its last obs."""
+        fresh = self._fresh(state, done)
         final = self._with_final(state, done)
         pick = functools.partial(_select, done)
         return dataclasses.replace(
@@ -405,10 +546,22 @@ class Env:
             physics=fresh.physics,
             obs=pick(fresh.obs, state.obs),
             steps=jnp.where(done, 0, state.steps),
+            episode_return=jnp.where(done, 0.0, state.episode_return),
             target_pos=pick(fresh.target_pos, state.target_pos),
             constants=jax.tree.map(pick, fresh.constants, state.constants),
+            goal_cursor=pick(fresh.goal_cursor, state.goal_cursor),
             key=pick(fresh.key, state.key),
         )
+
+    def _restart(self, state: State, ended: Array) -> State:
+        """NEXT_STEP: the `ended` rows are replaced by a fresh episode's start, as `reset` returns it."""
+        fresh = self._fresh(state, ended)
+        pick = functools.partial(_select, ended)
+        # The physics is per scene group (and `fresh` already has it); the rest is per env.
+        rows = jax.tree.map(
+            pick, dataclasses.replace(fresh, physics=()), dataclasses.replace(state, physics=())
+        )
+        return dataclasses.replace(rows, physics=fresh.physics)
 
     @staticmethod
     def _with_final(state: State, done: Array) -> State:
@@ -564,15 +717,33 @@ def make(
 ) -> Env:
     """`mwjax.make("MT10", envs_per_task=256, seed=42)`: a batched task set (see `Env`).
 
-    `tasks` is a set name ("MT10", "MT1:<task>") or a list of task names. Give the batch either
-    per task (`envs_per_task`, default 1) or in total (`num_envs`, a multiple of the task count).
+    `tasks` is a set name ("MT10", "ML45", "MT1"/"ML1" with `task=`, ...; see
+    `mwjax.benchmarks.benchmark`), a list of task names or a `Benchmark`; `split` picks an ML
+    set's "train" or "test" tasks. Give the batch either per task (`envs_per_task`, default 1) or
+    in total (`num_envs`, a multiple of the task count).
     """
     if num_envs is not None:
         if envs_per_task is not None:
             raise ValueError("give envs_per_task or num_envs, not both")
-        n_tasks = len(task_names(tasks))
+        n_tasks = len(benchmarks.task_names(tasks, kwargs.get("split", "train"), kwargs.get("task")))
         if not isinstance(num_envs, int) or num_envs < n_tasks or num_envs % n_tasks:
             raise ValueError(f"num_envs={num_envs!r} is not a positive multiple of the {n_tasks} tasks")
         envs_per_task = num_envs // n_tasks
     envs_per_task = 1 if envs_per_task is None else envs_per_task
     return Env(tasks, envs_per_task=envs_per_task, seed=seed, reward_version=reward_version, **kwargs)
+
+
+def _goal_pools(goal_sampling: str, envs_per_task: int, n_variants: int, n_tasks: int) -> tuple[Array, Array]:
+    """Which goal variants each env may visit, `(num_envs, P)` padded, and how many.
+
+    MT envs (`"on_reset"`) may draw any of their task's variants. ML envs (`"on_request"`) split
+    them like the reference's ML envs: env i of a task owns variants i, i + E, i + 2E, ... (E
+    envs per task); with more envs than variants, env i owns variant i mod the variant count."""
+    if goal_sampling == "on_reset" or envs_per_task == 1:
+        pools = [list(range(n_variants))] * envs_per_task
+    else:
+        pools = [list(range(i % n_variants, n_variants, envs_per_task)) for i in range(envs_per_task)]
+    width = max(len(p) for p in pools)
+    padded = np.array([p + [p[0]] * (width - len(p)) for p in pools], np.int32)
+    sizes = np.array([len(p) for p in pools], np.int32)
+    return jnp.asarray(np.tile(padded, (n_tasks, 1))), jnp.asarray(np.tile(sizes, n_tasks))

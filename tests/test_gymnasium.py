@@ -1,0 +1,207 @@
+"""The Gymnasium adapter: registration, spaces, both autoreset modes, one-hot ids, partial
+observability, truncation, terminate_on_success, ML goal cycling, seeding, Gymnasium's checker."""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import jax.numpy as jnp
+import numpy as np
+import pytest
+from gymnasium.utils.env_checker import check_env, data_equivalence
+from gymnasium.vector import AutoresetMode
+
+import mwjax  # noqa: F401  (registers the ids)
+from mwjax import policies
+
+HORIZON = 3
+TASKS = ["reach-v3", "push-v3"]
+
+
+def _rollout(envs, seed, steps):
+    obs, _ = envs.reset(seed=seed)
+    out = [obs]
+    rng = np.random.default_rng(seed)
+    for _ in range(steps):
+        obs, *_ = envs.step(rng.uniform(-1, 1, (envs.num_envs, 4)).astype(np.float32))
+        out.append(obs)
+    return out
+
+
+@pytest.fixture(scope="module")
+def same_step():
+    return gym.make_vec(
+        "mwjax/custom-mt-envs",
+        envs_list=TASKS,
+        num_envs=4,
+        max_episode_steps=HORIZON,
+        use_one_hot=True,
+        seed=1,
+    )
+
+
+@pytest.fixture(scope="module")
+def next_step():
+    return gym.make_vec(
+        "mwjax/custom-mt-envs",
+        envs_list=TASKS,
+        num_envs=4,
+        max_episode_steps=HORIZON,
+        autoreset_mode=AutoresetMode.NEXT_STEP,
+        seed=1,
+    )
+
+
+def test_registered_ids_mirror_the_reference():
+    for name in ("MT1", "MT10", "MT25", "MT50", "custom-mt-envs", "custom-ml-envs"):
+        assert f"mwjax/{name}" in gym.registry
+    for name in ("ML1", "ML10", "ML25", "ML45"):
+        for split in ("train", "test"):
+            assert f"mwjax/{name}-{split}" in gym.registry
+
+
+def test_spaces_and_one_hot(same_step):
+    envs = same_step
+    assert isinstance(envs.unwrapped, gym.vector.VectorEnv) and envs.num_envs == 4
+    assert envs.single_observation_space.shape == (39 + 2,)
+    assert envs.single_action_space.shape == (4,)
+    obs, info = envs.reset(seed=0)
+    assert isinstance(obs, np.ndarray) and obs.dtype == np.float32 and obs.shape == (4, 41)
+    assert envs.observation_space.contains(obs)
+    np.testing.assert_array_equal(obs[:, 39:], np.repeat(np.eye(2, dtype=np.float32), 2, axis=0))
+    assert envs.unwrapped.task_names == ("reach-v3", "reach-v3", "push-v3", "push-v3")
+    # MT sets show the goal.
+    assert np.all(np.any(obs[:, 36:39] != 0, axis=1))
+
+
+def test_same_step_autoreset_and_truncation(same_step):
+    envs = same_step
+    obs, _ = envs.reset(seed=2)
+    actions = np.zeros((4, 4), np.float32)
+    for step in range(1, HORIZON + 1):
+        prev = obs
+        obs, reward, terminated, truncated, info = envs.step(actions)
+        assert isinstance(reward, np.ndarray) and reward.dtype == np.float32
+        assert not terminated.any()
+        assert truncated.all() == (step == HORIZON)
+    assert info["_final_obs"].all() and info["_final_info"].all()
+    # The returned obs starts a new episode (its previous frame equals its current one); the
+    # finished episode's last obs continues the one before it.
+    np.testing.assert_array_equal(obs[:, :18], obs[:, 18:36])
+    np.testing.assert_array_equal(info["final_obs"][:, 18:36], prev[:, :18])
+    np.testing.assert_array_equal(info["final_obs"][:, 39:], obs[:, 39:])
+    assert set(info["final_info"]) >= {"success", "_success", "episode", "_episode"}
+    np.testing.assert_array_equal(info["final_info"]["episode"]["l"], [HORIZON] * 4)
+    assert info["final_info"]["episode"]["r"].shape == (4,)
+    assert not info["_success"].any()  # top-level info belongs to the new episodes
+    obs, _, _, truncated, info = envs.step(actions)
+    assert not truncated.any() and not info["_final_obs"].any()
+
+
+def test_next_step_autoreset(next_step):
+    envs = next_step
+    envs.reset(seed=2)
+    actions = np.zeros((4, 4), np.float32)
+    for _ in range(HORIZON):
+        obs, reward, terminated, truncated, info = envs.step(actions)
+    assert truncated.all() and info["_episode"].all()
+    np.testing.assert_array_equal(info["episode"]["l"], [HORIZON] * 4)
+    assert "final_obs" not in info
+    last = obs
+    obs, reward, terminated, truncated, info = envs.step(actions)  # the reset step
+    np.testing.assert_array_equal(reward, np.zeros(4, np.float32))
+    assert not (terminated | truncated).any()
+    np.testing.assert_array_equal(obs[:, :18], obs[:, 18:36])
+    assert not np.array_equal(obs, last)
+    obs2, *_ = envs.step(actions)
+    np.testing.assert_array_equal(obs2[:, 18:36], obs[:, :18])
+
+
+def test_same_seed_gives_identical_observations(same_step):
+    first = _rollout(same_step, seed=5, steps=4)
+    second = _rollout(same_step, seed=5, steps=4)
+    other = _rollout(same_step, seed=6, steps=4)
+    assert all(data_equivalence(a, b, exact=True) for a, b in zip(first, second, strict=True))
+    assert not all(np.array_equal(a, b) for a, b in zip(first, other, strict=True))
+
+
+def test_bad_arguments_are_refused(same_step):
+    with pytest.raises(ValueError, match="shape"):
+        same_step.step(np.zeros((3, 4), np.float32))
+    with pytest.raises(ValueError, match="NaN"):
+        same_step.step(np.full((4, 4), np.nan, np.float32))
+    with pytest.raises(ValueError, match="multiple"):
+        gym.make_vec("mwjax/MT10", num_envs=15)
+    with pytest.raises(ValueError, match="multiple"):
+        gym.make_vec("mwjax/ML10-train", meta_batch_size=15)
+    with pytest.raises(ValueError, match="cannot contain"):
+        gym.make_vec("mwjax/custom-ml-envs", train_envs=TASKS, test_envs=["push-v3"])
+    with pytest.raises(ValueError, match="unknown task"):
+        gym.make_vec("mwjax/MT1", env_name="reach-v2")
+
+
+@pytest.fixture(scope="module")
+def ml_test():
+    # The reference's default meta_batch_size (20) crashes ML1 (50 goals don't split into 20
+    # equal shares); here the 20 envs get 3 or 2 goals each.
+    return gym.make_vec("mwjax/ML1-test", env_name="reach-v3", seed=4, max_episode_steps=150, array_type="jax")
+
+
+def test_ml_goals_are_hidden_fixed_and_cycled(ml_test):
+    envs = ml_test
+    assert envs.num_envs == 20
+    obs, _ = envs.reset(seed=0)
+    assert not np.any(np.asarray(obs[:, 36:39]))
+    core = envs.unwrapped.env
+    variants = [np.asarray(envs.unwrapped.state.variant)]
+    # The test split's goals are the ML1 test goals (sampled with seed + 1), not the train goals.
+    assert not np.array_equal(
+        core.goal_variants["reach-v3"], mwjax.make("ML1", task="reach-v3", seed=4).goal_variants["reach-v3"]
+    )
+    for _ in range(3):
+        envs.sample_tasks()
+        variants.append(np.asarray(envs.unwrapped.state.variant))
+    variants = np.stack(variants)  # (4, 20)
+    # Env i owns goals i and i + 20 (and i + 40 for i < 10): within a cycle it never repeats one.
+    for i in range(20):
+        owned = set(range(i, 50, 20))
+        assert set(variants[:, i]) <= owned
+        cycle = len(owned)
+        assert len(set(variants[:cycle, i])) == cycle
+
+
+def test_terminate_on_success_in_ml_test_envs(ml_test):
+    envs = ml_test
+    expert = policies.expert_policy(envs.unwrapped.env)
+    obs, _ = envs.reset(seed=1)
+    terminated_any = np.zeros(20, bool)
+    for _ in range(150):
+        # The goal is hidden; give the scripted expert the true goal.
+        seen = obs.at[:, 36:39].set(envs.unwrapped.state.target_pos)
+        obs, _, terminated, truncated, info = envs.step(expert(None, seen, None))
+        assert np.array_equal(
+            np.asarray(terminated),
+            np.asarray(info["final_info"]["success"]) & np.asarray(info["_final_info"]),
+        )
+        terminated_any |= np.asarray(terminated)
+    assert terminated_any.all()
+
+
+def test_single_env_passes_gymnasium_check():
+    env = gym.make("mwjax/MT1", env_name="reach-v3", seed=0, max_episode_steps=20)
+    check_env(env.unwrapped, skip_render_check=True)
+    obs, _ = env.reset(seed=0)
+    assert env.observation_space.contains(obs)
+    for step in range(20):
+        obs, reward, terminated, truncated, info = env.step(env.action_space.sample())
+        assert isinstance(reward, float) and truncated == (step == 19)
+    assert set(info) >= {"success", "near_object", "episode_return"}
+
+
+def test_default_truncation_is_500():
+    envs = gym.make_vec("mwjax/MT1", env_name="reach-v3", num_envs=2, array_type="jax")
+    envs.reset(seed=0)
+    actions = jnp.zeros((2, 4))
+    for step in range(1, 501):
+        _, _, _, truncated, info = envs.step(actions)
+        assert bool(truncated.all()) == (step == 500)
+    assert np.asarray(info["final_info"]["episode"]["l"]).tolist() == [500, 500]

@@ -143,7 +143,9 @@ def test_bad_arguments_are_refused(same_step):
 def ml_test():
     # The reference's default meta_batch_size (20) crashes ML1 (50 goals don't split into 20
     # equal shares); here the 20 envs get 3 or 2 goals each.
-    return gym.make_vec("mwjax/ML1-test", env_name="reach-v3", seed=4, max_episode_steps=150, array_type="jax")
+    return gym.make_vec(
+        "mwjax/ML1-test", env_name="reach-v3", seed=4, max_episode_steps=150, array_type="jax"
+    )
 
 
 def test_ml_goals_are_hidden_fixed_and_cycled(ml_test):

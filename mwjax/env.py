@@ -117,6 +117,21 @@ class Env:
             raise ValueError(f"max_episode_steps must be a positive int, got {max_episode_steps!r}")
         if autoreset not in AUTORESET_MODES:
             raise ValueError(f"autoreset must be one of {AUTORESET_MODES}, got {autoreset!r}")
+        self.config: dict[str, Any] = {
+            "tasks": tasks,
+            "envs_per_task": envs_per_task,
+            "seed": seed,
+            "reward_version": reward_version,
+            "split": split,
+            "task": task,
+            "partially_observable": partially_observable,
+            "max_episode_steps": max_episode_steps,
+            "autoreset": autoreset,
+            "terminate_on_success": terminate_on_success,
+            "goal_sampling": goal_sampling,
+            "variants_per_task": variants_per_task,
+            "physics": physics,
+        }
         bench = benchmarks.benchmark(tasks, task)
         names = bench.tasks(split)
         variants = benchmarks.goal_variants(bench, seed, split)
@@ -222,7 +237,8 @@ class Env:
             raise ValueError(f"variants must have shape ({self.num_envs},), got {variants.shape}")
         if not isinstance(variants, jax.core.Tracer):
             n = self._variants.shape[1]
-            if not bool(jnp.all((variants >= 0) & (variants < n))):
+            concrete = np.asarray(variants)
+            if not np.all((concrete >= 0) & (concrete < n)):
                 raise ValueError(f"variants must lie in [0, {n})")
         keys = jax.random.split(jax.random.key(0) if key is None else key, self.num_envs)
         order = jnp.broadcast_to(
@@ -257,6 +273,16 @@ class Env:
         cursor = jnp.zeros(self.num_envs, jnp.int32)
         all_rows = jnp.ones(self.num_envs, bool)
         return self._reset_rows(self.physics.make_data(), rand_vecs, order, cursor, keys, all_rows)
+
+    def replace(self, **changes: Any) -> Env:
+        """The same env with some constructor arguments changed (a new, separately compiled env)."""
+        return Env(**{**self.config, **changes})
+
+    def restart(self, state: State, mask: Array | None = None) -> State:
+        """Fresh episodes in the rows where `mask` (all by default), as an autoreset starts them:
+        a new goal variant with `goal_sampling="on_reset"`, the same one with `"on_request"`."""
+        mask = jnp.ones(self.num_envs, bool) if mask is None else jnp.asarray(mask, bool)
+        return self._restart(state, mask)
 
     def observation_bounds(self) -> tuple[np.ndarray, np.ndarray]:
         """The reference's observation box (hand box, gripper [-1, 1], unbounded objects, goal

@@ -62,6 +62,7 @@ def measure(
     repeats: int,
     physics: mwjax.PhysicsConfig,
     physics_only_mode: bool = False,
+    warmup: bool = True,
 ) -> dict:
     n_tasks = len(task_names(benchmark))
     if total % n_tasks:
@@ -99,9 +100,11 @@ def measure(
     t0 = time.perf_counter()
     compiled = run.lower(state, jax.random.key(1)).compile()
     compile_s = time.perf_counter() - t0
-    t0 = time.perf_counter()
-    state, _ = jax.block_until_ready(compiled(state, jax.random.key(1)))  # warm-up, Warp JIT
-    first_rollout_s = time.perf_counter() - t0
+    first_rollout_s = None
+    if warmup:  # Warp compiles or loads its kernels on the first call
+        t0 = time.perf_counter()
+        state, _ = jax.block_until_ready(compiled(state, jax.random.key(1)))
+        first_rollout_s = time.perf_counter() - t0
     times = []
     for i in range(repeats):
         t0 = time.perf_counter()
@@ -137,6 +140,11 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=2)
     parser.add_argument("--physics", choices=["default", "fast"], default="default")
     parser.add_argument("--physics-only", action="store_true", help="time the physics calls alone")
+    parser.add_argument(
+        "--no-warmup",
+        action="store_true",
+        help="time the first rollout too (with a warm Warp kernel cache it costs the same; saves a rollout)",
+    )
     parser.add_argument("--out", default=None, help="JSON path (default: benchmarks/results/...)")
     args = parser.parse_args()
     physics = mwjax.PhysicsConfig() if args.physics == "default" else mwjax.PhysicsConfig.fast()
@@ -147,11 +155,13 @@ def main() -> None:
         for total in args.batch:
             n_tasks = len(task_names(benchmark))
             total = total - total % n_tasks
-            row = measure(benchmark, total, args.steps, args.repeats, physics, args.physics_only)
+            row = measure(
+                benchmark, total, args.steps, args.repeats, physics, args.physics_only, not args.no_warmup
+            )
             rows.append(row)
             print(
                 f"{benchmark:>20} {row['num_envs']:>7} envs  {row['env_steps_per_s']:>12,.0f} env steps/s  "
-                f"compile {row['step_compile_s']:.0f}s  first rollout {row['first_rollout_s']:.0f}s  "
+                f"compile {row['step_compile_s']:.0f}s  rollouts {[round(t) for t in row['rollout_s']]}s  "
                 f"state {row['state_bytes_per_env'] / 1024:.0f} KiB/env",
                 flush=True,
             )
@@ -162,6 +172,7 @@ def main() -> None:
         "commit": commit(),
         "date": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
         "physics": args.physics,
+        "warmup_rollout": not args.no_warmup,
         "jax": jax.__version__,
         "xla_mem_fraction": os.environ.get("XLA_PYTHON_CLIENT_MEM_FRACTION"),
         "results": rows,

@@ -1,0 +1,106 @@
+"""The jax scripted experts on every task, by the evaluation protocol, against the reference.
+
+Runs `mwjax.evaluation.evaluator` with `mwjax.policies.expert_policy` on a task set (MT50 by
+default) at the reference experts' setting: seed 42 goal variants, one episode per variant (50
+per task), up to 500 steps, success at any step. All episodes of all tasks run in one jitted
+scan. Compares each task with the serial reference run recorded by
+`tools/record_expert_success.py` (`benchmarks/results/reference-experts-seed42.json`) and writes
+a JSON and a Markdown table to `benchmarks/results/`.
+
+    XLA_PYTHON_CLIENT_MEM_FRACTION=0.45 python benchmarks/experts.py
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime
+import json
+import time
+from pathlib import Path
+
+import jax
+import numpy as np
+from throughput import commit
+
+import mwjax
+from mwjax import policies
+from mwjax.evaluation import evaluator
+
+RESULTS = Path(__file__).parent / "results"
+TOLERANCE = 0.04  # the issue's bar: every task within 0.04 below the reference
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--set", default="MT50")
+    parser.add_argument("--seed", type=int, default=42)
+    parser.add_argument("--episodes", type=int, default=50)
+    parser.add_argument("--reference", default=str(RESULTS / "reference-experts-seed42.json"))
+    args = parser.parse_args()
+    reference = json.loads(Path(args.reference).read_text())
+
+    env = mwjax.make(args.set, seed=args.seed)
+    policy = policies.expert_policy(env.replace(envs_per_task=args.episodes))
+    run = jax.jit(evaluator(env, policy, args.episodes))
+    t0 = time.perf_counter()
+    compiled = run.lower(None, jax.random.key(0)).compile()
+    compile_s = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    result = jax.block_until_ready(compiled(None, jax.random.key(0)))
+    first_s = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    result = jax.block_until_ready(compiled(None, jax.random.key(0)))
+    run_s = time.perf_counter() - t0
+
+    rates = {t: float(r) for t, r in zip(env.task_list, np.asarray(result.success_rate), strict=True)}
+    rows = []
+    for task in env.task_list:
+        ref = reference["success_rate"][task]
+        rows.append(
+            {"task": task, "mwjax": rates[task], "reference": ref, "ok": rates[task] >= ref - TOLERANCE}
+        )
+    device = jax.devices()[0]
+    out = {
+        "device": getattr(device, "device_kind", str(device)),
+        "commit": commit(),
+        "date": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
+        "set": args.set,
+        "seed": args.seed,
+        "episodes_per_task": args.episodes,
+        "num_envs": args.episodes * len(env.task_list),
+        "mean_success_rate": float(np.mean(list(rates.values()))),
+        "reference_mean_success_rate": reference["mean_success_rate"],
+        "all_within_tolerance": all(r["ok"] for r in rows),
+        "compile_s": compile_s,
+        "first_run_s": first_s,
+        "run_s": run_s,
+        "reference_wall_s": reference["wall_seconds"],
+        "reference_machine": reference["machine"],
+        "rows": rows,
+    }
+    name = f"experts-{args.set}-{out['device'].replace(' ', '_')}-{out['date'][:10]}"
+    (RESULTS / f"{name}.json").write_text(json.dumps(out, indent=1))
+    lines = [
+        f"# Scripted experts on {args.set}: mwjax vs metaworld 3.1.1",
+        "",
+        f"{out['device']}, commit {out['commit'][:10]}, {out['date']}; seed {args.seed}, "
+        f"{args.episodes} episodes per task (one per goal variant), 500 steps, success at any step.",
+        f"mwjax: {out['num_envs']} episodes in one jitted scan, {run_s:.1f} s (compile {compile_s:.0f} s). "
+        f"Reference: serial, {reference['wall_seconds']:.0f} s on {reference['machine']}.",
+        "",
+        f"Mean success: mwjax {out['mean_success_rate']:.3f}, "
+        f"reference {reference['mean_success_rate']:.3f}.",
+        "",
+        "| task | mwjax | reference | within 0.04 |",
+        "| --- | --- | --- | --- |",
+        *[
+            f"| {r['task']} | {r['mwjax']:.2f} | {r['reference']:.2f} | {'yes' if r['ok'] else 'NO'} |"
+            for r in rows
+        ],
+    ]
+    (RESULTS / f"{name}.md").write_text("\n".join(lines) + "\n")
+    print("\n".join(lines))
+
+
+if __name__ == "__main__":
+    main()

@@ -32,14 +32,21 @@ TOLERANCE = 0.04  # the issue's bar: every task within 0.04 below the reference
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--set", default="MT50")
+    parser.add_argument("--set", default="MT50", help="a set name, or task names separated by commas")
+    parser.add_argument(
+        "--contacts", type=int, default=None, help="contacts_per_env (default: PhysicsConfig's)"
+    )
+    parser.add_argument("--constraints", type=int, default=None, help="constraints_per_env")
     parser.add_argument("--seed", type=int, default=42)
     parser.add_argument("--episodes", type=int, default=50)
     parser.add_argument("--reference", default=str(RESULTS / "reference-experts-seed42.json"))
     args = parser.parse_args()
     reference = json.loads(Path(args.reference).read_text())
 
-    env = mwjax.make(args.set, seed=args.seed)
+    buffers = {"contacts_per_env": args.contacts, "constraints_per_env": args.constraints}
+    physics = mwjax.PhysicsConfig(**{k: v for k, v in buffers.items() if v is not None})
+    tasks = args.set.split(",") if "," in args.set else args.set
+    env = mwjax.make(tasks, seed=args.seed, physics=physics)
     policy = policies.expert_policy(env.replace(envs_per_task=args.episodes))
     run = jax.jit(evaluator(env, policy, args.episodes))
     t0 = time.perf_counter()
@@ -67,6 +74,7 @@ def main() -> None:
         "commit": commit(),
         "date": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
         "set": args.set,
+        "physics": str(physics),
         "seed": args.seed,
         "episodes_per_task": args.episodes,
         "num_envs": args.episodes * len(env.task_list),
@@ -80,7 +88,10 @@ def main() -> None:
         "reference_machine": reference["machine"],
         "rows": rows,
     }
-    name = f"experts-{args.set}-{out['device'].replace(' ', '_')}-{out['date'][:10]}"
+    label = args.set if "," not in args.set else f"{len(env.task_list)}tasks"
+    if args.contacts or args.constraints:
+        label += f"-buffers{physics.contacts_per_env}x{physics.constraints_per_env}"
+    name = f"experts-{label}-{out['device'].replace(' ', '_')}-{out['date'][:10]}"
     (RESULTS / f"{name}.json").write_text(json.dumps(out, indent=1))
     lines = [
         f"# Scripted experts on {args.set}: mwjax vs metaworld 3.1.1",

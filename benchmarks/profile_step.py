@@ -4,7 +4,7 @@
 
 Variants, each a jitted `lax.scan` of `--steps` steps timed after a warm-up:
   env step            the public `env.step` (autoreset on)
-  env step, no reset  `autoreset=False`
+  env step, no reset  `autoreset="disabled"`
   action + physics    metaworld's action written into the data, then the physics (no obs/reward)
   physics only        the physics calls alone (5 substeps + kinematics per scene)
   fast preset         `env.step` with `PhysicsConfig.fast()` (10 solver iterations)

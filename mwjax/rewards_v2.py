@@ -277,18 +277,24 @@ def reach_wall(step: StepInputs) -> tuple[Array, dict[str, Array]]:
     )
 
 
-def push(step: StepInputs) -> tuple[Array, dict[str, Array]]:
-    obj = step.obs[4:7]
-    tcp_opened = step.obs[3]
-    target = step.target_pos
-    tcp_to_obj = jnp.linalg.norm(obj - step.frame.tcp_center)
-    target_to_obj = jnp.linalg.norm(obj - target)
+def _in_place(step: StepInputs, obj: Array, target: Array) -> tuple[Array, Array]:
+    """The object's distance to `target` and its long-tail tolerance, whose margin is the distance
+    the object started at (push, hand-insert, sweep)."""
+    obj_to_target = jnp.linalg.norm(obj - target)
     in_place = tolerance(
-        target_to_obj,
+        obj_to_target,
         bounds=(0.0, TARGET_RADIUS),
         margin=jnp.linalg.norm(step.constants["obj_init_pos"] - target),
         sigmoid="long_tail",
     )
+    return obj_to_target, in_place
+
+
+def _push_terms(step: StepInputs) -> tuple[Array, Array, Array, Array]:
+    """push's and hand-insert's shared terms: object-to-target distance, in place, the
+    high-density caging of a 1.5 cm object, and the hand-to-object distance."""
+    obj = step.obs[4:7]
+    target_to_obj, in_place = _in_place(step, obj, step.target_pos)
     object_grasped = gripper_caging(
         step,
         obj,
@@ -298,6 +304,12 @@ def push(step: StepInputs) -> tuple[Array, dict[str, Array]]:
         xz_thresh=0.005,
         high_density=True,
     )
+    return target_to_obj, in_place, object_grasped, jnp.linalg.norm(obj - step.frame.tcp_center)
+
+
+def push(step: StepInputs) -> tuple[Array, dict[str, Array]]:
+    tcp_opened = step.obs[3]
+    target_to_obj, in_place, object_grasped, tcp_to_obj = _push_terms(step)
     reward = 2.0 * object_grasped
     # Quirk: `reward += 1.0 + reward + 5.0 * in_place` adds the caging term a second time.
     near = (tcp_to_obj < 0.02) & (tcp_opened > 0)
@@ -987,14 +999,8 @@ def _sweep_reward(
     step: StepInputs, target: Array, grip_success_margin: float, x_z_success_margin: float
 ) -> tuple[Array, dict[str, Array]]:
     obj = step.obs[4:7]
-    obj_to_target = jnp.linalg.norm(obj - target)
+    obj_to_target, in_place = _in_place(step, obj, target)
     tcp_to_obj = jnp.linalg.norm(obj - step.frame.tcp_center)
-    in_place = tolerance(
-        obj_to_target,
-        bounds=(0.0, TARGET_RADIUS),
-        margin=jnp.linalg.norm(step.constants["obj_init_pos"] - target),
-        sigmoid="long_tail",
-    )
     object_grasped = _pad_gripping_caging(step, obj, 0.02, grip_success_margin, x_z_success_margin)
     reward = 2.0 * object_grasped + 6.0 * hamacher_product(object_grasped, in_place)
     reward = jnp.where(obj_to_target < TARGET_RADIUS, 10.0, reward)
@@ -1541,27 +1547,9 @@ def hammer(step: StepInputs) -> tuple[Array, dict[str, Array]]:
 
 
 def hand_insert(step: StepInputs) -> tuple[Array, dict[str, Array]]:
-    obj = step.obs[4:7]
     tcp_opened = step.obs[3]
-    target = step.target_pos
-    target_to_obj = jnp.linalg.norm(obj - target)
-    in_place = tolerance(
-        target_to_obj,
-        bounds=(0.0, TARGET_RADIUS),
-        margin=jnp.linalg.norm(step.constants["obj_init_pos"] - target),
-        sigmoid="long_tail",
-    )
-    object_grasped = gripper_caging(
-        step,
-        obj,
-        obj_radius=0.015,
-        pad_success_thresh=0.05,
-        object_reach_radius=0.01,
-        xz_thresh=0.005,
-        high_density=True,
-    )
+    target_to_obj, in_place, object_grasped, tcp_to_obj = _push_terms(step)
     reward = hamacher_product(object_grasped, in_place)
-    tcp_to_obj = jnp.linalg.norm(obj - step.frame.tcp_center)
     reward = jnp.where((tcp_to_obj < 0.02) & (tcp_opened > 0), reward + 1.0 + 7.0 * in_place, reward)
     reward = jnp.where(target_to_obj < TARGET_RADIUS, 10.0, reward)
     return info_terms(

@@ -57,11 +57,15 @@ class Timestep(NamedTuple):
     aux_policy_outputs: dict[str, np.ndarray]
 
 
-def evaluation_env(env: Env, num_episodes: int = 50) -> Env:
-    """`env`'s tasks, goals and reward version with `num_episodes` envs per task, for evaluation."""
+def evaluation_env(env: Env, num_episodes: int = 50) -> tuple[Env, np.ndarray]:
+    """`env`'s tasks, goals and reward version with `num_episodes` envs per task, for evaluation,
+    and the goal variant of each of its envs (episode j of a task on variant j mod 50)."""
     if not isinstance(num_episodes, int) or num_episodes < 1:
         raise ValueError(f"num_episodes must be a positive int, got {num_episodes!r}")
-    return env.replace(envs_per_task=num_episodes, autoreset="disabled", terminate_on_success=False)
+    eval_env = env.replace(envs_per_task=num_episodes, autoreset="disabled", terminate_on_success=False)
+    n_variants = next(iter(eval_env.goal_variants.values())).shape[0]
+    variants = np.tile(np.arange(num_episodes) % n_variants, len(eval_env.task_list))
+    return eval_env, variants
 
 
 def evaluator(
@@ -69,10 +73,8 @@ def evaluator(
 ) -> Callable[[Any, Array], EvalResult]:
     """A jittable `(params, key) -> EvalResult` for `policy(params, obs, key) -> actions` on
     `env`'s task set (see the module docstring). `one_hot` appends task ids to observations."""
-    eval_env = evaluation_env(env, num_episodes)
+    eval_env, variants = evaluation_env(env, num_episodes)
     n_tasks = len(eval_env.task_list)
-    n_variants = next(iter(eval_env.goal_variants.values())).shape[0]
-    variants = jnp.asarray(np.tile(np.arange(num_episodes) % n_variants, n_tasks), jnp.int32)
     task_ids = jnp.asarray(np.eye(n_tasks, dtype=np.float32)[eval_env.task_ids])
 
     def observe(obs: Array) -> Array:
@@ -112,10 +114,8 @@ def evaluation(
     `agent.eval_action` receives NumPy observations of every episode, as `envs` shapes them.
     Returns (mean success rate, mean return, success rate per task, returns per task)."""
     core = _core(envs)
-    eval_env = evaluation_env(core.env, num_episodes)
+    eval_env, variants = evaluation_env(core.env, num_episodes)
     n_tasks = len(eval_env.task_list)
-    n_variants = next(iter(eval_env.goal_variants.values())).shape[0]
-    variants = np.tile(np.arange(num_episodes) % n_variants, n_tasks)
     one_hot = np.eye(n_tasks, dtype=np.float32)[eval_env.task_ids] if core.use_one_hot else None
     step = jax.jit(eval_env.step)
     state = jax.jit(eval_env.reset_with_variants)(jnp.asarray(variants), jax.random.key(seed))

@@ -116,7 +116,7 @@ class Physics:
 def _for_warp(model: mujoco.MjModel) -> mujoco.MjModel:
     """MuJoCo C collides two boxes with `mjc_BoxBox` (a full contact manifold). MJX-Warp sends box
     pairs to its general convex collider unless native CCD is disabled, a flag that in Warp only
-    selects its port of `mjc_BoxBox`; the convex path finds fewer contacts (6 instead of C's 14
+    selects its port of `mjc_BoxBox`; the convex path finds fewer contacts (6 instead of C's 10
     on a hand-insert grasp), and grasps held by box pads then slip. So the device model sets it
     (a copy: the host model stays MuJoCo C's, for anything that steps it there)."""
     warp_model = copy.copy(model)

@@ -7,6 +7,12 @@ printed as a table and written to `benchmarks/results/` with device, commit and 
 
     python benchmarks/throughput.py --sets MT1:pick-place-v3 MT10 --batch 4096 16384 65536
 
+`--vs-reference PYTHON` also runs the reference (metaworld 3.1.1, its own interpreter, one
+process per env with Gymnasium's AsyncVectorEnv, see `reference_throughput.py`) in the same
+invocation and prints mwjax's best rate over it per set. `--adapter` also times the Gymnasium
+adapter (`mwjax.make_vector`, one jitted call and a NumPy transfer per step) at the same batch
+sizes. `--plot` saves the scaling curve (env steps/s against batch size) as a PNG beside the JSON.
+
 On a GPU set XLA_PYTHON_CLIENT_MEM_FRACTION (~0.45) so JAX leaves Warp room.
 """
 
@@ -18,12 +24,15 @@ import datetime
 import json
 import os
 import platform
+import shlex
 import subprocess
+import sys
 import time
 from pathlib import Path
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 import mwjax
 from mwjax.benchmarks import task_names
@@ -132,6 +141,107 @@ def measure(
     }
 
 
+def measure_adapter(benchmark: str, total: int, steps: int) -> dict:
+    """The Gymnasium adapter stepped from Python: NumPy actions in, NumPy results out, against the
+    same adapter with device (jax) arrays, which isolates the host transfer."""
+    n_tasks = len(task_names(benchmark))
+    rates = {}
+    for array_type in ("jax", "numpy"):
+        envs = mwjax.make_vector(benchmark, envs_per_task=total // n_tasks, seed=0, array_type=array_type)
+        envs.reset(seed=0)
+        rng = np.random.default_rng(0)
+        actions = rng.uniform(-1, 1, size=(steps + 1, envs.num_envs, 4)).astype(np.float32)
+        if array_type == "jax":
+            actions = jnp.asarray(actions)
+        jax.block_until_ready(envs.step(actions[0]))  # compile
+        t0 = time.perf_counter()
+        for action in actions[1:]:
+            out = envs.step(action)
+        jax.block_until_ready(out)
+        rates[array_type] = envs.num_envs * steps / (time.perf_counter() - t0)
+        envs.close()
+    per_step_ms = 1e3 * total * (1 / rates["numpy"] - 1 / rates["jax"])
+    return {
+        "benchmark": benchmark,
+        "num_envs": total,
+        "adapter_steps": steps,
+        "adapter_jax_env_steps_per_s": rates["jax"],
+        "adapter_numpy_env_steps_per_s": rates["numpy"],
+        "numpy_transfer_ms_per_step": per_step_ms,
+    }
+
+
+def measure_reference(python: str, benchmark: str, steps: int) -> dict:
+    script = Path(__file__).with_name("reference_throughput.py")
+    out = subprocess.run(
+        [
+            *shlex.split(python),
+            str(script),
+            "--set",
+            benchmark,
+            "--steps",
+            str(steps),
+            "--envs",
+            str(os.cpu_count()),
+        ],
+        capture_output=True,
+        text=True,
+    )
+    if out.returncode:
+        sys.exit(f"reference run failed for {benchmark}:\n{out.stderr[-3000:]}")
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def plot(result: dict, path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(7, 4.5))
+    for i, name in enumerate(dict.fromkeys(r["benchmark"] for r in result["results"])):
+        rows = sorted((r for r in result["results"] if r["benchmark"] == name), key=lambda r: r["num_envs"])
+        color = f"C{i}"
+        ax.plot(
+            [r["num_envs"] for r in rows],
+            [r["env_steps_per_s"] for r in rows],
+            "o-",
+            color=color,
+            label=f"mwjax {name}",
+        )
+        adapter = [r for r in result.get("adapter", []) if r["benchmark"] == name]
+        if adapter:
+            ax.plot(
+                [r["num_envs"] for r in adapter],
+                [r["adapter_numpy_env_steps_per_s"] for r in adapter],
+                "x:",
+                color=color,
+                label=f"mwjax {name}, Gymnasium adapter (NumPy)",
+            )
+        for ref in result.get("reference", []):
+            if ref["benchmark"] == name:
+                ax.axhline(
+                    ref["env_steps_per_s"],
+                    color=color,
+                    ls="--",
+                    lw=1,
+                    label=f"metaworld 3.1.1 {name} ({ref['cpu_cores']} CPU cores)",
+                )
+    ax.set_xscale("log", base=2)
+    ax.set_yscale("log")
+    ax.set_xlabel("envs in the batch")
+    ax.set_ylabel("env steps / s")
+    ax.grid(alpha=0.3, which="both")
+    ax.legend(fontsize=7)
+    ax.set_title(
+        f"{result['device']}, {result['physics']} physics, commit {result['commit'][:8]}, "
+        f"{result['date'][:10]}",
+        fontsize=9,
+    )
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--sets", nargs="+", default=["MT1:pick-place-v3", "MT10"])
@@ -145,6 +255,16 @@ def main() -> None:
         action="store_true",
         help="time the first rollout too (with a warm Warp kernel cache it costs the same; saves a rollout)",
     )
+    parser.add_argument(
+        "--vs-reference",
+        metavar="PYTHON",
+        default=None,
+        help="also time metaworld 3.1.1 with this interpreter (a command line)",
+    )
+    parser.add_argument("--reference-steps", type=int, default=500)
+    parser.add_argument("--adapter", action="store_true", help="also time the Gymnasium adapter")
+    parser.add_argument("--adapter-steps", type=int, default=50)
+    parser.add_argument("--plot", action="store_true", help="save the scaling curve as a PNG")
     parser.add_argument("--out", default=None, help="JSON path (default: benchmarks/results/...)")
     args = parser.parse_args()
     physics = mwjax.PhysicsConfig() if args.physics == "default" else mwjax.PhysicsConfig.fast()
@@ -165,6 +285,34 @@ def main() -> None:
                 f"state {row['state_bytes_per_env'] / 1024:.0f} KiB/env",
                 flush=True,
             )
+    adapter = []
+    if args.adapter:
+        for benchmark in args.sets:
+            n_tasks = len(task_names(benchmark))
+            for total in args.batch:
+                row = measure_adapter(benchmark, total - total % n_tasks, args.adapter_steps)
+                adapter.append(row)
+                print(
+                    f"{benchmark:>20} {row['num_envs']:>7} envs  adapter: "
+                    f"{row['adapter_numpy_env_steps_per_s']:>12,.0f} env steps/s with NumPy, "
+                    f"{row['adapter_jax_env_steps_per_s']:>12,.0f} with jax arrays "
+                    f"({row['numpy_transfer_ms_per_step']:.2f} ms/step transfer)",
+                    flush=True,
+                )
+    reference = []
+    if args.vs_reference:
+        for benchmark in args.sets:
+            ref = measure_reference(args.vs_reference, benchmark, args.reference_steps)
+            best = max(r["env_steps_per_s"] for r in rows if r["benchmark"] == benchmark)
+            ref["mwjax_best_env_steps_per_s"] = best
+            ref["ratio"] = best / ref["env_steps_per_s"]
+            reference.append(ref)
+            print(
+                f"{benchmark:>20} reference (metaworld 3.1.1, {ref['num_envs']} envs, AsyncVectorEnv, "
+                f"{ref['cpu_cores']} cores): {ref['env_steps_per_s']:,.0f} env steps/s; "
+                f"mwjax {best:,.0f} = {ref['ratio']:.0f}x",
+                flush=True,
+            )
     result = {
         "device": getattr(device, "device_kind", str(device)),
         "platform": device.platform,
@@ -176,6 +324,8 @@ def main() -> None:
         "jax": jax.__version__,
         "xla_mem_fraction": os.environ.get("XLA_PYTHON_CLIENT_MEM_FRACTION"),
         "results": rows,
+        "adapter": adapter,
+        "reference": reference,
     }
     out = (
         Path(args.out)
@@ -190,6 +340,9 @@ def main() -> None:
         rate, compile_s = row["env_steps_per_s"], row["step_compile_s"]
         print(f"{row['benchmark']:>20} {row['num_envs']:>7} {rate:>14,.0f} {compile_s:>10.1f}")
     print(f"device {result['device']}, commit {result['commit'][:10]}, {result['date']} -> {out}")
+    if args.plot:
+        plot(result, out.with_suffix(".png"))
+        print(f"plot -> {out.with_suffix('.png')}")
 
 
 if __name__ == "__main__":

@@ -1,0 +1,504 @@
+"""Multi-task PPO on MT10, entirely on device: env steps, policy, GAE and updates in one jitted loop.
+
+    python benchmarks/train_mt_ppo.py --minutes 9 --seeds 0     # the README's run (GPU)
+    python benchmarks/train_mt_ppo.py --envs-per-task 4 --unroll 8 --updates 2   # a CPU smoke run
+
+One `lax.scan` runs `--log-every` PPO updates (each: `--unroll` steps of every env, GAE, several
+epochs of minibatch updates) without leaving the device; the host only prints progress between
+those chunks. The policy sees the 39-d observation plus a one-hot task id; observations are
+normalized with running statistics and rewards with a running scale per task (the ten tasks' V2
+rewards differ in scale), and advantages are normalized per task, so that no task's gradient
+drowns out another's. At the end the policy's mean action is evaluated with
+`mwjax.evaluation.evaluator` (50 episodes per task, one per goal variant, success at any step),
+and the learning curve is saved as JSON and PNG in `benchmarks/results/`.
+
+Needs the `train` extra (optax); the PNG needs matplotlib.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import datetime
+import json
+import math
+import time
+from pathlib import Path
+from typing import Any, NamedTuple
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import optax
+
+import mwjax
+from mwjax.evaluation import evaluator
+
+RESULTS = Path(__file__).parent / "results"
+Array = jax.Array
+
+
+@dataclasses.dataclass(frozen=True)
+class Config:
+    task_set: str | tuple[str, ...] = "MT10"
+    envs_per_task: int = 1638
+    unroll: int = 32
+    minibatches: int = 16
+    epochs: int = 4
+    learning_rate: float = 3e-4
+    gamma: float = 0.99
+    gae_lambda: float = 0.95
+    clip: float = 0.2
+    value_coef: float = 0.5
+    entropy_coef: float = 1e-3
+    max_grad_norm: float = 1.0
+    hidden: tuple[int, ...] = (256, 256, 256)
+    init_log_std: float = -0.5
+    reward_version: str = "v2"
+    max_episode_steps: int = 500
+    seed: int = 0
+
+
+class RunningStats(NamedTuple):
+    """Mean and variance over everything seen so far (Chan et al.'s parallel merge), per column
+    or, for rewards, per task."""
+
+    count: Array
+    mean: Array
+    var: Array
+
+    @staticmethod
+    def zeros(shape: tuple[int, ...]) -> RunningStats:
+        return RunningStats(jnp.zeros(shape[:-1] or ()), jnp.zeros(shape), jnp.ones(shape))
+
+    def merge(self, batch: Array, axis: tuple[int, ...]) -> RunningStats:
+        n = math.prod(batch.shape[a] for a in axis)
+        mean, var = batch.mean(axis=axis), batch.var(axis=axis)
+        total = self.count + n
+        delta = mean - self.mean
+        new_mean = self.mean + delta * n / total
+        m2 = self.var * self.count + var * n + delta**2 * self.count * n / total
+        return RunningStats(total, new_mean, m2 / total)
+
+
+class Params(NamedTuple):
+    policy: list[tuple[Array, Array]]
+    log_std: Array
+    value: list[tuple[Array, Array]]
+
+
+class Normalizers(NamedTuple):
+    obs: RunningStats
+    returns: RunningStats  # per task, of the discounted return accumulated so far
+
+
+class Transition(NamedTuple):
+    obs: Array  # as observed, with the one-hot task id
+    action: Array  # unclipped Gaussian sample
+    log_prob: Array
+    value: Array
+    reward: Array  # raw
+    truncated: Array
+    final_value: Array  # value of the episode's last observation, where it was truncated
+
+
+class Carry(NamedTuple):
+    params: Params
+    opt_state: Any
+    norm: Normalizers
+    env_state: mwjax.State
+    running_return: Array  # per env, for the reward scale
+    episode_success: Array  # per env: success at any step of the current episode
+    key: Array
+
+
+class Metrics(NamedTuple):
+    episodes: Array  # per task, episodes finished
+    successes: Array  # per task, of those, ones that succeeded
+    loss: Array
+    approx_kl: Array
+
+
+def _mlp_init(key: Array, sizes: list[int], last_scale: float) -> list[tuple[Array, Array]]:
+    layers = []
+    for i, (fan_in, fan_out) in enumerate(zip(sizes[:-1], sizes[1:], strict=True)):
+        key, sub = jax.random.split(key)
+        scale = last_scale if i == len(sizes) - 2 else math.sqrt(2.0)
+        w = jax.nn.initializers.orthogonal(scale)(sub, (fan_in, fan_out))
+        layers.append((w, jnp.zeros(fan_out)))
+    return layers
+
+
+def _mlp(layers: list[tuple[Array, Array]], x: Array) -> Array:
+    for w, b in layers[:-1]:
+        x = jax.nn.swish(x @ w + b)
+    w, b = layers[-1]
+    return x @ w + b
+
+
+def _log_prob(mean: Array, log_std: Array, action: Array) -> Array:
+    z = (action - mean) * jnp.exp(-log_std)
+    return jnp.sum(-0.5 * z**2 - log_std - 0.5 * math.log(2 * math.pi), axis=-1)
+
+
+class Trainer:
+    """The jitted pieces of a run: `init(key)`, `train_chunk(carry, n)` and `evaluate(params, key)`."""
+
+    def __init__(self, config: Config) -> None:
+        self.config = config
+        self.env = mwjax.make(
+            config.task_set,
+            envs_per_task=config.envs_per_task,
+            seed=config.seed,
+            reward_version=config.reward_version,
+            max_episode_steps=config.max_episode_steps,
+        )
+        self.n_tasks = len(self.env.task_list)
+        self.obs_size = mwjax.env.OBS_SIZE + self.n_tasks
+        self.one_hot = jnp.asarray(np.eye(self.n_tasks, dtype=np.float32)[self.env.task_ids])
+        batch = self.env.num_envs * config.unroll
+        if batch % config.minibatches:
+            raise ValueError(f"{batch} samples per update do not split into {config.minibatches} minibatches")
+        self.optimizer = optax.chain(
+            optax.clip_by_global_norm(config.max_grad_norm), optax.adam(config.learning_rate)
+        )
+        self.init = jax.jit(self._init)
+        self.train_chunk = jax.jit(self._train_chunk, static_argnums=1, donate_argnums=0)
+
+    # -- the policy ---------------------------------------------------------------------------
+
+    def _init(self, key: Array) -> Carry:
+        cfg = self.config
+        policy_key, value_key, env_key, key = jax.random.split(key, 4)
+        sizes = [self.obs_size, *cfg.hidden]
+        params = Params(
+            policy=_mlp_init(policy_key, [*sizes, 4], 0.01),
+            log_std=jnp.full(4, cfg.init_log_std),
+            value=_mlp_init(value_key, [*sizes, 1], 1.0),
+        )
+        norm = Normalizers(RunningStats.zeros((self.obs_size,)), RunningStats.zeros((self.n_tasks,)))
+        env_state = self.env.reset(env_key)
+        zeros = jnp.zeros(self.env.num_envs)
+        return Carry(params, self.optimizer.init(params), norm, env_state, zeros, zeros.astype(bool), key)
+
+    def _with_task(self, obs: Array) -> Array:
+        return jnp.concatenate([obs, self.one_hot], axis=-1)
+
+    @staticmethod
+    def _normalize(norm: Normalizers, obs: Array) -> Array:
+        return jnp.clip((obs - norm.obs.mean) / jnp.sqrt(norm.obs.var + 1e-8), -10.0, 10.0)
+
+    def _value(self, params: Params, obs: Array) -> Array:
+        return _mlp(params.value, obs)[..., 0]
+
+    def policy(self, params_and_norm: tuple[Params, Normalizers], obs: Array, key: Array) -> Array:
+        """The deterministic (mean) action for observations with one-hot task ids appended, as
+        `mwjax.evaluation.evaluator(..., one_hot=True)` calls a policy."""
+        del key
+        params, norm = params_and_norm
+        return jnp.clip(_mlp(params.policy, self._normalize(norm, obs)), -1.0, 1.0)
+
+    # -- one PPO update -------------------------------------------------------------------------
+
+    def _rollout(self, carry: Carry) -> tuple[Carry, Transition, Array, Array]:
+        params, norm = carry.params, carry.norm
+
+        def step(c: tuple, key: Array) -> tuple[tuple, tuple[Transition, Array]]:
+            env_state, episode_success = c
+            raw = self._with_task(env_state.obs)
+            obs = self._normalize(norm, raw)
+            mean = _mlp(params.policy, obs)
+            action = mean + jnp.exp(params.log_std) * jax.random.normal(key, mean.shape)
+            value = self._value(params, obs)
+            env_state = self.env.step(env_state, jnp.clip(action, -1.0, 1.0))
+            truncated = env_state.truncated
+            final_obs = self._normalize(norm, self._with_task(env_state.info["final_obs"]))
+            final_value = self._value(params, final_obs)
+            success = episode_success | env_state.info["success"]
+            transition = Transition(
+                raw,
+                action,
+                _log_prob(mean, params.log_std, action),
+                value,
+                env_state.reward,
+                truncated,
+                jnp.where(truncated, final_value, 0.0),
+            )
+            ended = truncated & success
+            return (env_state, success & ~truncated), (transition, ended)
+
+        key, rollout_key = jax.random.split(carry.key)
+        keys = jax.random.split(rollout_key, self.config.unroll)
+        (env_state, episode_success), (batch, ended_success) = jax.lax.scan(
+            step, (carry.env_state, carry.episode_success), keys
+        )
+        per_task = (self.config.unroll, self.n_tasks, self.env.envs_per_task)
+        episodes = batch.truncated.reshape(per_task).sum(axis=(0, 2))
+        successes = ended_success.reshape(per_task).sum(axis=(0, 2))
+        carry = carry._replace(env_state=env_state, episode_success=episode_success, key=key)
+        return carry, batch, episodes, successes
+
+    def _scaled_rewards(self, carry: Carry, batch: Transition) -> tuple[Carry, Array]:
+        """Rewards divided by each task's running std of the discounted return."""
+
+        def accumulate(running: Array, x: tuple[Array, Array]) -> tuple[Array, Array]:
+            reward, truncated = x
+            running = running * self.config.gamma + reward
+            return jnp.where(truncated, 0.0, running), running
+
+        running, returns = jax.lax.scan(accumulate, carry.running_return, (batch.reward, batch.truncated))
+        per_task = returns.reshape(self.config.unroll, self.n_tasks, self.env.envs_per_task)
+        stats = carry.norm.returns.merge(per_task.transpose(0, 2, 1), axis=(0, 1))
+        scale = jnp.repeat(jnp.sqrt(stats.var + 1e-8), self.env.envs_per_task)
+        norm = carry.norm._replace(returns=stats)
+        return carry._replace(norm=norm, running_return=running), batch.reward / scale
+
+    def _advantages(
+        self, params: Params, norm: Normalizers, env_state: mwjax.State, batch: Transition, rewards: Array
+    ) -> tuple[Array, Array]:
+        cfg = self.config
+        last_value = self._value(params, self._normalize(norm, self._with_task(env_state.obs)))
+        next_values = jnp.concatenate([batch.value[1:], last_value[None]])
+        # At a truncation the next obs is the new episode's: bootstrap from the final obs instead.
+        next_values = jnp.where(batch.truncated, batch.final_value, next_values)
+        deltas = rewards + cfg.gamma * next_values - batch.value
+
+        def backward(advantage: Array, x: tuple[Array, Array]) -> tuple[Array, Array]:
+            delta, truncated = x
+            advantage = delta + cfg.gamma * cfg.gae_lambda * jnp.where(truncated, 0.0, advantage)
+            return advantage, advantage
+
+        _, advantages = jax.lax.scan(
+            backward, jnp.zeros_like(last_value), (deltas, batch.truncated), reverse=True
+        )
+        return advantages, advantages + batch.value
+
+    def _loss(self, params: Params, mb: Transition, advantages: Array, targets: Array) -> Array:
+        cfg = self.config
+        mean = _mlp(params.policy, mb.obs)
+        log_prob = _log_prob(mean, params.log_std, mb.action)
+        ratio = jnp.exp(log_prob - mb.log_prob)
+        policy_loss = -jnp.minimum(
+            ratio * advantages, jnp.clip(ratio, 1 - cfg.clip, 1 + cfg.clip) * advantages
+        ).mean()
+        value_loss = 0.5 * ((self._value(params, mb.obs) - targets) ** 2).mean()
+        entropy = jnp.sum(params.log_std + 0.5 * math.log(2 * math.pi * math.e))
+        loss = policy_loss + cfg.value_coef * value_loss - cfg.entropy_coef * entropy
+        return loss, (mb.log_prob - log_prob).mean()
+
+    def _update(self, carry: Carry, _: None) -> tuple[Carry, Metrics]:
+        cfg = self.config
+        carry, batch, episodes, successes = self._rollout(carry)
+        carry, rewards = self._scaled_rewards(carry, batch)
+        advantages, targets = self._advantages(carry.params, carry.norm, carry.env_state, batch, rewards)
+        per_task = advantages.reshape(cfg.unroll, self.n_tasks, -1)
+        per_task = (per_task - per_task.mean(axis=(0, 2), keepdims=True)) / (
+            per_task.std(axis=(0, 2), keepdims=True) + 1e-8
+        )
+        advantages = per_task.reshape(advantages.shape)
+        # The loss sees observations as the rollout's policy saw them; the statistics of this
+        # rollout then join the running ones, for the next rollouts.
+        norm = carry.norm._replace(obs=carry.norm.obs.merge(batch.obs, axis=(0, 1)))
+        batch = batch._replace(obs=self._normalize(carry.norm, batch.obs))
+
+        flat = jax.tree.map(lambda x: x.reshape(-1, *x.shape[2:]), (batch, advantages, targets))
+        n = flat[1].shape[0]
+
+        def epoch(c: tuple, key: Array) -> tuple[tuple, tuple[Array, Array]]:
+            order = jax.random.permutation(key, n).reshape(cfg.minibatches, -1)
+
+            def minibatch(c: tuple, idx: Array) -> tuple[tuple, tuple[Array, Array]]:
+                params, opt_state = c
+                mb, adv, tgt = jax.tree.map(lambda x: x[idx], flat)
+                (loss, kl), grads = jax.value_and_grad(self._loss, has_aux=True)(params, mb, adv, tgt)
+                updates, opt_state = self.optimizer.update(grads, opt_state, params)
+                return (optax.apply_updates(params, updates), opt_state), (loss, kl)
+
+            return jax.lax.scan(minibatch, c, order)
+
+        key, epoch_key = jax.random.split(carry.key)
+        (params, opt_state), (loss, kl) = jax.lax.scan(
+            epoch, (carry.params, carry.opt_state), jax.random.split(epoch_key, cfg.epochs)
+        )
+        carry = carry._replace(params=params, opt_state=opt_state, norm=norm, key=key)
+        return carry, Metrics(episodes, successes, loss.mean(), kl.mean())
+
+    def _train_chunk(self, carry: Carry, updates: int) -> tuple[Carry, Metrics]:
+        carry, metrics = jax.lax.scan(self._update, carry, None, length=updates)
+        return carry, Metrics(
+            metrics.episodes.sum(0), metrics.successes.sum(0), metrics.loss.mean(), metrics.approx_kl.mean()
+        )
+
+    def evaluator(self, num_episodes: int = 50) -> Any:
+        return jax.jit(evaluator(self.env, self.policy, num_episodes, one_hot=True))
+
+    @property
+    def steps_per_update(self) -> int:
+        return self.env.num_envs * self.config.unroll
+
+
+def train(
+    config: Config, minutes: float, log_every: int, max_updates: int | None = None, eval_episodes: int = 50
+) -> dict:
+    """Train until `minutes` of wall clock (compile included) or `max_updates`; then evaluate."""
+    start = time.perf_counter()
+    trainer = Trainer(config)
+    carry = trainer.init(jax.random.key(config.seed))
+    curve: list[dict] = []
+    updates = 0
+    budget = minutes * 60
+    chunk_s = 0.0
+    print(
+        f"{config.task_set}: {trainer.env.num_envs} envs, {trainer.steps_per_update:,} env steps per update",
+        flush=True,
+    )
+    while max_updates is None or updates < max_updates:
+        n = log_every if max_updates is None else min(log_every, max_updates - updates)
+        elapsed = time.perf_counter() - start
+        if max_updates is None and elapsed + chunk_s > budget:
+            break
+        t0 = time.perf_counter()
+        carry, metrics = trainer.train_chunk(carry, n)
+        metrics = jax.device_get(metrics)
+        chunk_s = time.perf_counter() - t0 if updates else 0.0
+        updates += n
+        rates = metrics.successes / np.maximum(metrics.episodes, 1)
+        row = {
+            "updates": updates,
+            "env_steps": updates * trainer.steps_per_update,
+            "wall_s": time.perf_counter() - start,
+            "train_success": float(rates.mean()) if metrics.episodes.all() else None,
+            "train_success_per_task": dict(zip(trainer.env.task_list, rates.tolist(), strict=True)),
+            "loss": float(metrics.loss),
+            "approx_kl": float(metrics.approx_kl),
+        }
+        curve.append(row)
+        _progress(row, budget, trainer.env.task_list, rates, metrics.episodes)
+    train_s = time.perf_counter() - start
+    t0 = time.perf_counter()
+    result = trainer.evaluator(eval_episodes)((carry.params, carry.norm), jax.random.key(config.seed + 1000))
+    success = np.asarray(result.success_rate)
+    return {
+        "config": dataclasses.asdict(config),
+        "curve": curve,
+        "train_s": train_s,
+        "eval_s": time.perf_counter() - t0,
+        "eval_success_per_task": dict(zip(trainer.env.task_list, success.tolist(), strict=True)),
+        "eval_success": float(success.mean()),
+        "params": carry.params,
+    }
+
+
+def _progress(
+    row: dict, budget: float, tasks: tuple[str, ...], rates: np.ndarray, episodes: np.ndarray
+) -> None:
+    done = min(row["wall_s"] / budget, 1.0)
+    bar = "#" * int(30 * done) + "." * (30 - int(30 * done))
+    mean = "  n/a" if row["train_success"] is None else f"{row['train_success']:.3f}"
+    per_task = " ".join(
+        f"{t.removesuffix('-v3')}={r:.2f}" if e else f"{t.removesuffix('-v3')}=n/a"
+        for t, r, e in zip(tasks, rates, episodes, strict=True)
+    )
+    print(
+        f"[{bar}] {row['wall_s']:6.0f}s  {row['env_steps'] / 1e6:8.1f}M steps  "
+        f"update {row['updates']}  loss {row['loss']:.3f}  success {mean} | {per_task}",
+        flush=True,
+    )
+
+
+def _plot(runs: list[dict], path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4))
+    for run in runs:
+        points = [r for r in run["curve"] if r["train_success"] is not None]
+        label = f"seed {run['config']['seed']} (eval {run['eval_success']:.2f})"
+        axes[0].plot(
+            [r["env_steps"] / 1e6 for r in points], [r["train_success"] for r in points], label=label
+        )
+        axes[1].plot([r["wall_s"] for r in points], [r["train_success"] for r in points], label=label)
+    axes[0].set_xlabel("env steps (millions)")
+    axes[1].set_xlabel("wall clock (s, compile included)")
+    for ax in axes:
+        ax.set_ylabel("mean success, training episodes")
+        ax.set_ylim(0, 1)
+        ax.grid(alpha=0.3)
+        ax.legend()
+    fig.suptitle(
+        f"{runs[0]['config']['task_set']} multi-task PPO ({runs[0]['config']['reward_version']} rewards)"
+    )
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    defaults = Config()
+    parser.add_argument("--set", default=defaults.task_set, help="a set name, or tasks separated by commas")
+    parser.add_argument("--envs-per-task", type=int, default=defaults.envs_per_task)
+    parser.add_argument("--unroll", type=int, default=defaults.unroll)
+    parser.add_argument("--minibatches", type=int, default=defaults.minibatches)
+    parser.add_argument("--epochs", type=int, default=defaults.epochs)
+    parser.add_argument("--lr", type=float, default=defaults.learning_rate)
+    parser.add_argument("--entropy-coef", type=float, default=defaults.entropy_coef)
+    parser.add_argument("--reward-version", default=defaults.reward_version)
+    parser.add_argument("--seeds", type=int, nargs="+", default=[0])
+    parser.add_argument("--minutes", type=float, default=9.0, help="wall clock per seed, compile included")
+    parser.add_argument("--updates", type=int, default=None, help="stop after this many updates instead")
+    parser.add_argument("--log-every", type=int, default=10, help="updates per jitted chunk")
+    parser.add_argument("--eval-episodes", type=int, default=50, help="per task, one per goal variant")
+    parser.add_argument("--out", default=None, help="result stem (default: benchmarks/results/train-...)")
+    args = parser.parse_args()
+
+    from throughput import commit
+
+    runs = []
+    for seed in args.seeds:
+        config = Config(
+            task_set=tuple(args.set.split(",")) if "," in args.set else args.set,
+            envs_per_task=args.envs_per_task,
+            unroll=args.unroll,
+            minibatches=args.minibatches,
+            epochs=args.epochs,
+            learning_rate=args.lr,
+            entropy_coef=args.entropy_coef,
+            reward_version=args.reward_version,
+            seed=seed,
+        )
+        run = train(config, args.minutes, args.log_every, args.updates, args.eval_episodes)
+        run.pop("params")
+        print(
+            f"seed {seed}: evaluation success {run['eval_success']:.3f} "
+            f"({run['eval_s']:.0f}s) {run['eval_success_per_task']}",
+            flush=True,
+        )
+        runs.append(run)
+    device = jax.devices()[0]
+    summary = {
+        "device": getattr(device, "device_kind", str(device)),
+        "commit": commit(),
+        "date": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
+        "eval_success": [r["eval_success"] for r in runs],
+        "runs": runs,
+    }
+    if len(runs) > 1:
+        from mwjax.stats import iqm, stratified_bootstrap_ci
+
+        # Per-task success of each seed, IQM over all of them, CI from resampling seeds per task.
+        scores = np.array([list(r["eval_success_per_task"].values()) for r in runs])
+        estimate = stratified_bootstrap_ci(scores)
+        summary["iqm"] = iqm(scores)
+        summary["iqm_ci95"] = [estimate.low, estimate.high]
+    stem = args.out or str(
+        RESULTS / f"train-{args.set}-ppo-{summary['device']}-{summary['date'][:10]}".replace(" ", "_")
+    )
+    Path(f"{stem}.json").write_text(json.dumps(summary, indent=2))
+    _plot(runs, Path(f"{stem}.png"))
+    print(f"-> {stem}.json, {stem}.png")
+
+
+if __name__ == "__main__":
+    main()

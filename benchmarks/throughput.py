@@ -36,6 +36,7 @@ import numpy as np
 
 import mwjax
 from mwjax.benchmarks import task_names
+from mwjax.wrappers.gymnasium import make_vector
 
 RESULTS = Path(__file__).parent / "results"
 
@@ -147,15 +148,16 @@ def measure_adapter(benchmark: str, total: int, steps: int) -> dict:
     n_tasks = len(task_names(benchmark))
     rates = {}
     for array_type in ("jax", "numpy"):
-        envs = mwjax.make_vector(benchmark, envs_per_task=total // n_tasks, seed=0, array_type=array_type)
+        envs = make_vector(benchmark, envs_per_task=total // n_tasks, seed=0, array_type=array_type)
         envs.reset(seed=0)
         rng = np.random.default_rng(0)
-        actions = rng.uniform(-1, 1, size=(steps + 1, envs.num_envs, 4)).astype(np.float32)
+        actions = rng.uniform(-1, 1, size=(steps + 2, envs.num_envs, 4)).astype(np.float32)
         if array_type == "jax":
             actions = jnp.asarray(actions)
-        jax.block_until_ready(envs.step(actions[0]))  # compile
+        for action in actions[:2]:  # compile (the NumPy-wrapped env compiles twice)
+            jax.block_until_ready(envs.step(action))
         t0 = time.perf_counter()
-        for action in actions[1:]:
+        for action in actions[2:]:
             out = envs.step(action)
         jax.block_until_ready(out)
         rates[array_type] = envs.num_envs * steps / (time.perf_counter() - t0)

@@ -1,8 +1,8 @@
 """Gymnasium adapters over the functional core: a `VectorEnv` for the whole batch and a single
 `Env` for MT1, registered under the reference's ids with an `mwjax/` prefix.
 
-The vector env speaks JAX arrays (on device); `make_vector` wraps it in Gymnasium's own
-`JaxToNumpy` (the default) or `JaxToTorch` vector wrapper, or returns it bare (`array_type="jax"`).
+The vector env speaks JAX arrays (on device); `make_vector` wraps it in `NumpyVectorEnv` (the
+default), in Gymnasium's `JaxToTorch`, or returns it bare (`array_type="jax"`).
 """
 
 from __future__ import annotations
@@ -264,10 +264,26 @@ def make_vector(
     if array_type == "jax":
         return vector
     if array_type == "numpy":
-        return gym.wrappers.vector.JaxToNumpy(vector)
+        return NumpyVectorEnv(vector)
     if array_type == "torch":
         return gym.wrappers.vector.JaxToTorch(vector)
     raise ValueError(f"array_type must be 'numpy', 'jax' or 'torch', got {array_type!r}")
+
+
+class NumpyVectorEnv(gym.vector.VectorWrapper):
+    """NumPy actions in, NumPy results out, with one device-to-host copy of each step's outputs.
+    Gymnasium's `JaxToNumpy` converts through DLPack, which fails on the GPU for arrays that
+    MJX-Warp's FFI calls produce ("JaxCallableGraphMode.WARP is not supported for JAX CPU FFI
+    calls", H200, 2026-11-21); `jax.device_get` copies them fine."""
+
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[Any, dict]:
+        return jax.device_get(self.env.reset(seed=seed, options=options))
+
+    def step(self, actions: Any) -> tuple[Any, Any, Any, Any, dict]:
+        return jax.device_get(self.env.step(jnp.asarray(actions)))
+
+    def sample_tasks(self) -> tuple[Any, dict]:
+        return jax.device_get(self.env.sample_tasks())
 
 
 def register_envs() -> None:

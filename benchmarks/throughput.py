@@ -272,10 +272,10 @@ def main() -> None:
     physics = mwjax.PhysicsConfig() if args.physics == "default" else mwjax.PhysicsConfig.fast()
 
     device = jax.devices()[0]
-    rows = []
+    rows, adapter = [], []
     for benchmark in args.sets:
+        n_tasks = len(task_names(benchmark))
         for total in args.batch:
-            n_tasks = len(task_names(benchmark))
             total = total - total % n_tasks
             row = measure(
                 benchmark, total, args.steps, args.repeats, physics, args.physics_only, not args.no_warmup
@@ -287,18 +287,14 @@ def main() -> None:
                 f"state {row['state_bytes_per_env'] / 1024:.0f} KiB/env",
                 flush=True,
             )
-    adapter = []
-    if args.adapter:
-        for benchmark in args.sets:
-            n_tasks = len(task_names(benchmark))
-            for total in args.batch:
-                row = measure_adapter(benchmark, total - total % n_tasks, args.adapter_steps)
-                adapter.append(row)
+            if args.adapter:
+                timing = measure_adapter(benchmark, total, args.adapter_steps)
+                adapter.append(timing)
                 print(
-                    f"{benchmark:>20} {row['num_envs']:>7} envs  adapter: "
-                    f"{row['adapter_numpy_env_steps_per_s']:>12,.0f} env steps/s with NumPy, "
-                    f"{row['adapter_jax_env_steps_per_s']:>12,.0f} with jax arrays "
-                    f"({row['numpy_transfer_ms_per_step']:.2f} ms/step transfer)",
+                    f"{'':>20} {'':>7}       adapter: "
+                    f"{timing['adapter_numpy_env_steps_per_s']:>12,.0f} env steps/s with NumPy, "
+                    f"{timing['adapter_jax_env_steps_per_s']:,.0f} with jax arrays "
+                    f"({timing['numpy_transfer_ms_per_step']:.2f} ms/step transfer)",
                     flush=True,
                 )
     reference = []

@@ -155,7 +155,7 @@ class Trainer:
         )
         self.n_tasks = len(self.env.task_list)
         self.obs_size = mwjax.env.OBS_SIZE + self.n_tasks
-        self.one_hot = jnp.asarray(np.eye(self.n_tasks, dtype=np.float32)[self.env.task_ids])
+        self.one_hot = jnp.asarray(self.env.task_one_hot())
         batch = self.env.num_envs * config.unroll
         if batch % config.minibatches:
             raise ValueError(f"{batch} samples per update do not split into {config.minibatches} minibatches")

@@ -298,6 +298,10 @@ class Env:
         high = np.concatenate([frame_high, frame_high, goal_high]).astype(np.float32)
         return low, high
 
+    def task_one_hot(self) -> np.ndarray:
+        """Each env's task id as a one-hot row, `(num_envs, tasks)`: the reference's `use_one_hot`."""
+        return np.eye(len(self.task_list), dtype=np.float32)[self.task_ids]
+
     def task_rows(self, task: str) -> slice:
         """The rows of `task` in the env batch."""
         rows = self._task(task)

@@ -75,7 +75,7 @@ def evaluator(
     `env`'s task set (see the module docstring). `one_hot` appends task ids to observations."""
     eval_env, variants = evaluation_env(env, num_episodes)
     n_tasks = len(eval_env.task_list)
-    task_ids = jnp.asarray(np.eye(n_tasks, dtype=np.float32)[eval_env.task_ids])
+    task_ids = jnp.asarray(eval_env.task_one_hot())
 
     def observe(obs: Array) -> Array:
         return jnp.concatenate([obs, task_ids], axis=-1) if one_hot else obs
@@ -116,7 +116,7 @@ def evaluation(
     core = _core(envs)
     eval_env, variants = evaluation_env(core.env, num_episodes)
     n_tasks = len(eval_env.task_list)
-    one_hot = np.eye(n_tasks, dtype=np.float32)[eval_env.task_ids] if core.use_one_hot else None
+    one_hot = eval_env.task_one_hot() if core.use_one_hot else None
     step = jax.jit(eval_env.step)
     state = jax.jit(eval_env.reset_with_variants)(jnp.asarray(variants), jax.random.key(seed))
     agent.reset(np.ones(eval_env.num_envs, bool))

@@ -47,7 +47,7 @@ class MwjaxVectorEnv(gym.vector.VectorEnv):
         }
         low, high = env.observation_bounds()
         n_tasks = len(env.task_list)
-        self._one_hot = jnp.asarray(np.eye(n_tasks, dtype=np.float32)[env.task_ids])
+        self._one_hot = jnp.asarray(env.task_one_hot())
         if use_one_hot:
             low = np.concatenate([low, np.zeros(n_tasks, np.float32)])
             high = np.concatenate([high, np.ones(n_tasks, np.float32)])

@@ -33,8 +33,9 @@ class PhysicsConfig:
     ls_iterations: int | None = None
     # Contact and constraint buffers. Warp preallocates them and drops what overflows. MuJoCo C
     # reaches 223 constraint rows and 54 contacts per env under the reference's sweep-into expert
-    # (175 rows for peg-insert-side); with 256 rows, box-box manifolds overflowed on the H200 and
-    # dropped constraints. Contacts are pooled over the batch, constraint rows are per env.
+    # (175 rows for peg-insert-side; benchmarks/results/reference-constraint-rows-cpu-2026-11-21.md);
+    # with 256 rows, box-box manifolds overflowed on the H200 and dropped constraints. Contacts are
+    # pooled over the batch, constraint rows are per env.
     contacts_per_env: int = 64
     constraints_per_env: int = 512
 
@@ -102,7 +103,7 @@ class Physics:
     def step_group(self, g: int, data: mjx.Data) -> mjx.Data:
         """`step` for group `g` alone."""
         # The model is closed over, not a vmap argument: as an argument, every call hashes all
-        # of its NumPy fields (meshes included) while tracing, ~10% of the step's trace time.
+        # of its NumPy fields (meshes included) while tracing.
         model = self.groups[g].device_model
         step = jax.vmap(functools.partial(mjx.step, model))
         # Unrolled: a device-side loop would cost a host round trip per substep on GPU.

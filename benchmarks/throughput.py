@@ -252,6 +252,11 @@ def main() -> None:
     parser.add_argument("--physics", choices=["default", "fast"], default="default")
     parser.add_argument("--physics-only", action="store_true", help="time the physics calls alone")
     parser.add_argument(
+        "--graph-mode",
+        default=None,
+        help="PhysicsConfig.graph_mode: who captures the CUDA graphs (warp, jax, none, warp_staged, ...)",
+    )
+    parser.add_argument(
         "--no-warmup",
         action="store_true",
         help="time the first rollout too (with a warm Warp kernel cache it costs the same; saves a rollout)",
@@ -269,6 +274,7 @@ def main() -> None:
     parser.add_argument("--out", default=None, help="JSON path (default: benchmarks/results/...)")
     args = parser.parse_args()
     physics = mwjax.PhysicsConfig() if args.physics == "default" else mwjax.PhysicsConfig.fast()
+    physics = dataclasses.replace(physics, graph_mode=args.graph_mode)
 
     device = jax.devices()[0]
     rows, adapter = [], []
@@ -317,6 +323,8 @@ def main() -> None:
         "commit": commit(),
         "date": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
         "physics": args.physics,
+        "graph_mode": args.graph_mode,
+        "xla_flags": os.environ.get("XLA_FLAGS"),
         "warmup_rollout": not args.no_warmup,
         "jax": jax.__version__,
         "xla_mem_fraction": os.environ.get("XLA_PYTHON_CLIENT_MEM_FRACTION"),

@@ -55,6 +55,9 @@ class Config:
     max_grad_norm: float = 1.0
     hidden: tuple[int, ...] = (256, 256, 256)
     init_log_std: float = -0.5
+    # One output head per task on the shared trunk (policy mean and value), picked by the task id,
+    # as in the multi-head agents of Meta-World's baselines (MTMHSAC).
+    multi_head: bool = False
     reward_version: str = "v2"
     max_episode_steps: int = 500
     seed: int = 0
@@ -172,12 +175,13 @@ class Trainer:
         cfg = self.config
         policy_key, value_key, env_key, key = jax.random.split(key, 4)
         sizes = [self.obs_size, *cfg.hidden]
+        heads = self.n_tasks if cfg.multi_head else 1
         params = Params(
-            policy=_mlp_init(policy_key, [*sizes, 4], 0.01),
+            policy=_mlp_init(policy_key, [*sizes, 4 * heads], 0.01),
             log_std=jnp.full(4, cfg.init_log_std),
-            value=_mlp_init(value_key, [*sizes, 1], 1.0),
+            value=_mlp_init(value_key, [*sizes, heads], 1.0),
         )
-        norm = Normalizers(RunningStats.zeros((self.obs_size,)), RunningStats.zeros((self.n_tasks,)))
+        norm = Normalizers(RunningStats.zeros((mwjax.env.OBS_SIZE,)), RunningStats.zeros((self.n_tasks,)))
         env_state = self.env.reset(env_key)
         zeros = jnp.zeros(self.env.num_envs)
         return Carry(params, self.optimizer.init(params), norm, env_state, zeros, zeros.astype(bool), key)
@@ -187,21 +191,34 @@ class Trainer:
 
     @staticmethod
     def _normalize(norm: Normalizers, obs: Array) -> Array:
-        return jnp.clip((obs - norm.obs.mean) / jnp.sqrt(norm.obs.var + 1e-8), -10.0, 10.0)
+        """Normalizes the env observation; the one-hot task id after it passes through as is."""
+        env_obs, task = obs[..., : mwjax.env.OBS_SIZE], obs[..., mwjax.env.OBS_SIZE :]
+        env_obs = jnp.clip((env_obs - norm.obs.mean) / jnp.sqrt(norm.obs.var + 1e-8), -10.0, 10.0)
+        return jnp.concatenate([env_obs, task], axis=-1)
+
+    def _head(self, out: Array, obs: Array, size: int) -> Array:
+        """The task's own `size` outputs of a multi-head network (the only head otherwise)."""
+        if not self.config.multi_head:
+            return out
+        task = obs[..., mwjax.env.OBS_SIZE :]
+        return jnp.einsum("...th,...t->...h", out.reshape(*out.shape[:-1], self.n_tasks, size), task)
+
+    def _mean(self, params: Params, obs: Array) -> Array:
+        return self._head(_mlp(params.policy, obs), obs, 4)
 
     def _per_task(self, x: Array) -> Array:
         """`(unroll, num_envs)` as `(unroll, tasks, envs_per_task)`: the batch is laid out task by task."""
         return x.reshape(x.shape[0], self.n_tasks, self.env.envs_per_task)
 
     def _value(self, params: Params, obs: Array) -> Array:
-        return _mlp(params.value, obs)[..., 0]
+        return self._head(_mlp(params.value, obs), obs, 1)[..., 0]
 
     def policy(self, params_and_norm: tuple[Params, Normalizers], obs: Array, key: Array) -> Array:
         """The deterministic (mean) action for observations with one-hot task ids appended, as
         `mwjax.evaluation.evaluator(..., one_hot=True)` calls a policy."""
         del key
         params, norm = params_and_norm
-        return jnp.clip(_mlp(params.policy, self._normalize(norm, obs)), -1.0, 1.0)
+        return jnp.clip(self._mean(params, self._normalize(norm, obs)), -1.0, 1.0)
 
     # -- one PPO update -------------------------------------------------------------------------
 
@@ -212,7 +229,7 @@ class Trainer:
             env_state, episode_success = c
             raw = self._with_task(env_state.obs)
             obs = self._normalize(norm, raw)
-            mean = _mlp(params.policy, obs)
+            mean = self._mean(params, obs)
             action = mean + jnp.exp(params.log_std) * jax.random.normal(key, mean.shape)
             value = self._value(params, obs)
             env_state = self.env.step(env_state, jnp.clip(action, -1.0, 1.0))
@@ -278,7 +295,7 @@ class Trainer:
 
     def _loss(self, params: Params, mb: Transition, advantages: Array, targets: Array) -> Array:
         cfg = self.config
-        mean = _mlp(params.policy, mb.obs)
+        mean = self._mean(params, mb.obs)
         log_prob = _log_prob(mean, params.log_std, mb.action)
         ratio = jnp.exp(log_prob - mb.log_prob)
         policy_loss = -jnp.minimum(
@@ -301,7 +318,8 @@ class Trainer:
         advantages = per_task.reshape(advantages.shape)
         # The loss sees observations as the rollout's policy saw them; the statistics of this
         # rollout then join the running ones, for the next rollouts.
-        norm = carry.norm._replace(obs=carry.norm.obs.merge(batch.obs, axis=(0, 1)))
+        env_obs = batch.obs[..., : mwjax.env.OBS_SIZE]
+        norm = carry.norm._replace(obs=carry.norm.obs.merge(env_obs, axis=(0, 1)))
         batch = batch._replace(obs=self._normalize(carry.norm, batch.obs))
 
         flat = jax.tree.map(lambda x: x.reshape(-1, *x.shape[2:]), (batch, advantages, targets))
@@ -448,6 +466,13 @@ def main() -> None:
     parser.add_argument("--lr", type=float, default=defaults.learning_rate)
     parser.add_argument("--entropy-coef", type=float, default=defaults.entropy_coef)
     parser.add_argument("--reward-version", default=defaults.reward_version)
+    parser.add_argument(
+        "--multi-head",
+        action=argparse.BooleanOptionalAction,
+        default=defaults.multi_head,
+        help="one policy and value head per task",
+    )
+    parser.add_argument("--init-log-std", type=float, default=defaults.init_log_std)
     parser.add_argument("--seeds", type=int, nargs="+", default=[0])
     parser.add_argument("--minutes", type=float, default=7.4, help="wall clock per seed, compile included")
     parser.add_argument("--updates", type=int, default=None, help="stop after this many updates instead")
@@ -468,6 +493,8 @@ def main() -> None:
             epochs=args.epochs,
             learning_rate=args.lr,
             entropy_coef=args.entropy_coef,
+            multi_head=args.multi_head,
+            init_log_std=args.init_log_std,
             reward_version=args.reward_version,
             seed=seed,
         )

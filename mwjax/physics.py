@@ -18,6 +18,7 @@ from collections.abc import Sequence
 import jax
 import jax.numpy as jnp
 import mujoco
+import warp
 from mujoco import mjx
 
 from mwjax.models import load_scene
@@ -38,6 +39,19 @@ class PhysicsConfig:
     # pooled over the batch, constraint rows are per env.
     contacts_per_env: int = 64
     constraints_per_env: int = 512
+    # Who captures the CUDA graphs of a Warp step: None is MJX's choice ("warp" on GPU: Warp
+    # captures each call and replays it for the same buffer addresses), "jax" lets XLA record the
+    # kernels into its own command buffers, "none" launches them one by one. A name of
+    # `warp.JaxCallableGraphMode`, lower case.
+    graph_mode: str | None = None
+    # "box_box": Warp's port of MuJoCo C's `mjc_BoxBox` (C's collider, see `_for_warp`);
+    # "convex": Warp's general convex collider (GJK/EPA), MJX-Warp's own default.
+    box_box_collider: str = "box_box"
+
+    def __post_init__(self) -> None:
+        if self.box_box_collider not in ("box_box", "convex"):
+            raise ValueError(f"box_box_collider must be 'box_box' or 'convex', not {self.box_box_collider!r}")
+        _graph_mode(self.graph_mode)
 
     @classmethod
     def fast(cls) -> PhysicsConfig:
@@ -73,7 +87,9 @@ class Physics:
                     start=start,
                     size=size,
                     model=model,
-                    device_model=mjx.put_model(_for_warp(model), impl="warp"),
+                    device_model=mjx.put_model(
+                        _for_warp(model, config), impl="warp", graph_mode=_graph_mode(config.graph_mode)
+                    ),
                 )
             )
             start += size
@@ -118,15 +134,25 @@ class Physics:
         )
 
 
-def _for_warp(model: mujoco.MjModel) -> mujoco.MjModel:
+def _for_warp(model: mujoco.MjModel, config: PhysicsConfig) -> mujoco.MjModel:
     """MuJoCo C collides two boxes with `mjc_BoxBox` (a full contact manifold). MJX-Warp sends box
     pairs to its general convex collider unless native CCD is disabled, a flag that in Warp only
     selects its port of `mjc_BoxBox`; the convex path finds fewer contacts (6 instead of C's 10
     on a hand-insert grasp), and grasps held by box pads then slip. So the device model sets it
     (a copy: the host model stays MuJoCo C's, for anything that steps it there)."""
     warp_model = copy.copy(model)
-    warp_model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_NATIVECCD
+    if config.box_box_collider == "box_box":
+        warp_model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_NATIVECCD
     return warp_model
+
+
+def _graph_mode(name: str | None) -> warp.JaxCallableGraphMode | None:
+    if name is None:
+        return None
+    modes = {mode.name.lower(): mode for mode in warp.JaxCallableGraphMode}
+    if name not in modes:
+        raise ValueError(f"unknown graph_mode {name!r}; known: {', '.join(modes)}")
+    return modes[name]
 
 
 def _configured(model: mujoco.MjModel, config: PhysicsConfig) -> mujoco.MjModel:

@@ -122,6 +122,10 @@ def test_bad_arguments():
         mwjax.make(["reach-v3", "reach-v3"])
     with pytest.raises(ValueError, match="not a positive multiple of the 10 tasks"):
         mwjax.make("MT10", num_envs=25)
+    with pytest.raises(ValueError, match="box_box_collider"):
+        mwjax.PhysicsConfig(box_box_collider="gjk")
+    with pytest.raises(ValueError, match="unknown graph_mode 'cuda'"):
+        mwjax.PhysicsConfig(graph_mode="cuda")
 
 
 def test_bad_actions(env, compiled, episode):

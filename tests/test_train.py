@@ -1,6 +1,7 @@
 """CPU smoke test of the jitted multi-task PPO loop (`benchmarks/train_mt_ppo.py`); the real run is
 a GPU benchmark. Two tasks of one scene, a tiny batch and 10-step episodes keep it short."""
 
+import dataclasses
 import sys
 from pathlib import Path
 
@@ -49,3 +50,18 @@ def test_the_trained_policy_runs_through_the_evaluator(trainer):
     assert result.success.shape == (2, 2)
     assert np.all(np.asarray(result.lengths) <= CONFIG.max_episode_steps)
     assert np.all(np.isfinite(np.asarray(result.returns)))
+
+
+def test_multi_head_policy_answers_each_task_with_its_own_head():
+    trainer = ppo.Trainer(dataclasses.replace(CONFIG, multi_head=True))
+    carry = trainer.init(jax.random.key(3))
+    obs = np.asarray(carry.env_state.obs)
+    with_task = np.concatenate([obs, trainer.env.task_one_hot()], axis=-1)
+    w, b = carry.params.policy[-1]
+    # Move only the second task's head (its 4 outputs of the last layer).
+    params = carry.params._replace(policy=[*carry.params.policy[:-1], (w, b.at[4:8].add(0.5))])
+    before = np.asarray(trainer.policy((carry.params, carry.norm), with_task, None))
+    after = np.asarray(trainer.policy((params, carry.norm), with_task, None))
+    first, second = slice(0, CONFIG.envs_per_task), slice(CONFIG.envs_per_task, None)
+    np.testing.assert_array_equal(after[first], before[first])
+    assert np.all(after[second] != before[second])

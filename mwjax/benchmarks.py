@@ -263,6 +263,13 @@ def goal_variants(
     return sample_goal_variants(names, int(seed) + offset)
 
 
+def mt1_goal_variants(names: Sequence[str], seed: int) -> dict[str, np.ndarray]:
+    """Every task's own MT1 goal variants, `{task: metaworld.MT1(task, seed).train_tasks}`: the
+    goals the reference's per-task runs (its scripted experts, MT1 training) see. A set such as
+    MT50 draws its tasks' variants from one RNG in turn, so only its first task's match these."""
+    return {name: goal_variants("MT1", seed, task=name)[name] for name in names}
+
+
 def _check_tasks(names: tuple[str, ...]) -> tuple[str, ...]:
     if not names:
         raise ValueError("a task set needs at least one task")

@@ -108,6 +108,7 @@ class Env:
         goal_sampling: str | None = None,
         variants_per_task: int | None = None,
         physics: PhysicsConfig | None = None,
+        goal_variants: Mapping[str, Any] | None = None,
     ) -> None:
         if reward_version not in ("v1", "v2"):
             raise ValueError(f"reward_version must be 'v1' or 'v2', got {reward_version!r}")
@@ -131,19 +132,22 @@ class Env:
             "goal_sampling": goal_sampling,
             "variants_per_task": variants_per_task,
             "physics": physics,
+            "goal_variants": goal_variants,
         }
         bench = benchmarks.benchmark(tasks, task)
         names = bench.tasks(split)
-        variants = benchmarks.goal_variants(bench, seed, split)
+        if goal_variants is None:
+            variants = benchmarks.goal_variants(bench, seed, split)
+        else:
+            variants = _given_variants(goal_variants, names)
         if goal_sampling is None:
             goal_sampling = "on_request" if bench.meta_learning else "on_reset"
         if goal_sampling not in GOAL_SAMPLING:
             raise ValueError(f"goal_sampling must be one of {GOAL_SAMPLING}, got {goal_sampling!r}")
-        n_variants = benchmarks.N_GOALS if variants_per_task is None else variants_per_task
-        if not isinstance(n_variants, int) or not 1 <= n_variants <= benchmarks.N_GOALS:
-            raise ValueError(
-                f"variants_per_task must be an int in [1, {benchmarks.N_GOALS}], got {n_variants!r}"
-            )
+        available = len(next(iter(variants.values())))
+        n_variants = available if variants_per_task is None else variants_per_task
+        if not isinstance(n_variants, int) or not 1 <= n_variants <= available:
+            raise ValueError(f"variants_per_task must be an int in [1, {available}], got {n_variants!r}")
         self.benchmark = bench
         self.split = split
         self.reward_version = reward_version
@@ -761,6 +765,26 @@ def make(
         envs_per_task = num_envs // n_tasks
     envs_per_task = 1 if envs_per_task is None else envs_per_task
     return Env(tasks, envs_per_task=envs_per_task, seed=seed, reward_version=reward_version, **kwargs)
+
+
+def _given_variants(given: Mapping[str, Any], names: Sequence[str]) -> dict[str, np.ndarray]:
+    """Caller-chosen goal variants (`rand_vec`s), checked: one `(n, d)` array per task of the
+    split, the same n for all, each row inside the task's random box."""
+    if set(given) != set(names):
+        raise ValueError(f"goal_variants must have exactly the tasks {sorted(names)}, got {sorted(given)}")
+    variants = {}
+    for name in names:
+        spec = get_task(name)
+        low, high = np.asarray(spec.random_low), np.asarray(spec.random_high)
+        vecs = np.asarray(given[name], np.float64)
+        if vecs.ndim != 2 or vecs.shape[1] != low.size or len(vecs) < 1:
+            raise ValueError(f"goal_variants[{name!r}] must have shape (n, {low.size}), got {vecs.shape}")
+        if not np.all(np.isfinite(vecs)) or np.any(vecs < low) or np.any(vecs > high):
+            raise ValueError(f"goal_variants[{name!r}] has values outside the task's random box")
+        variants[name] = vecs
+    if len({len(v) for v in variants.values()}) > 1:
+        raise ValueError("goal_variants must give every task the same number of variants")
+    return variants
 
 
 def _goal_pools(goal_sampling: str, envs_per_task: int, n_variants: int, n_tasks: int) -> tuple[Array, Array]:

@@ -92,3 +92,18 @@ def test_custom_sets_sample_like_the_reference_does():
     assert np.array_equal(
         train["push-v3"], benchmarks.sample_goal_variants(["reach-v3", "push-v3"], 5)["push-v3"]
     )
+
+
+def test_mt1_goal_variants_are_each_tasks_own():
+    # MT1 and ML1's train split draw a task's variants alike (the partial-observability override
+    # touches no draw), so the recorded ML1 train goals are the reference's MT1 goals.
+    tasks = ["door-lock-v3", "bin-picking-v3", "pick-place-v3"]
+    ours = benchmarks.mt1_goal_variants(tasks, 42)
+    assert list(ours) == tasks
+    for task in tasks:
+        assert np.array_equal(ours[task], RECORDED[(f"ML1:{task}", 42, "train")][task]), task
+    # In a set, only the first task draws first from the seeded RNG.
+    mt10 = RECORDED[("MT10", 42, "train")]
+    first, second = list(mt10)[:2]
+    assert np.array_equal(benchmarks.mt1_goal_variants([first], 42)[first], mt10[first])
+    assert not np.array_equal(benchmarks.mt1_goal_variants([second], 42)[second], mt10[second])

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 import mwjax
+from mwjax import benchmarks
 from mwjax.benchmarks import MT10
 from mwjax.tasks import TASKS as TASKS_REGISTRY
 
@@ -159,3 +160,25 @@ def test_mt10_task_order():
 def test_mt50_is_every_task():
     names = mwjax.benchmarks.task_names("MT50")
     assert len(names) == 50 and set(names) == set(TASKS_REGISTRY)
+
+
+def test_given_goal_variants_replace_the_sets():
+    tasks = ["reach-v3", "push-v3"]
+    given = benchmarks.mt1_goal_variants(tasks, 7)
+    env = mwjax.make(tasks, envs_per_task=2, seed=0, goal_variants=given)
+    for task in tasks:
+        np.testing.assert_array_equal(env.goal_variants[task], given[task])
+    assert not np.array_equal(env.goal_variants["push-v3"], benchmarks.goal_variants(tasks, 0)["push-v3"])
+    # The reset places each env's goal from its variant's rand_vec.
+    state = jax.jit(env.reset_with_variants)(jnp.array([0, 1, 0, 1]))
+    default = mwjax.make(tasks, envs_per_task=2, seed=0)
+    other = jax.jit(default.reset_with_variants)(jnp.array([0, 1, 0, 1]))
+    assert not np.allclose(state.obs[:, 36:], other.obs[:, 36:])
+    with pytest.raises(ValueError, match="exactly the tasks"):
+        mwjax.make(tasks, goal_variants={"reach-v3": given["reach-v3"]})
+    with pytest.raises(ValueError, match="shape"):
+        mwjax.make(tasks, goal_variants={t: v[:, :2] for t, v in given.items()})
+    with pytest.raises(ValueError, match="random box"):
+        mwjax.make(tasks, goal_variants={t: v + 10.0 for t, v in given.items()})
+    with pytest.raises(ValueError, match="variants_per_task"):
+        mwjax.make(tasks, goal_variants={t: v[:3] for t, v in given.items()}, variants_per_task=4)

@@ -56,7 +56,10 @@ class MwjaxVectorEnv(gym.vector.VectorEnv):
         self.observation_space = gym.vector.utils.batch_space(self.single_observation_space, self.num_envs)
         self.action_space = gym.vector.utils.batch_space(self.single_action_space, self.num_envs)
         self._reset = jax.jit(env.reset)
-        self._step = jax.jit(env.step)
+        # The old state is donated: each step's state reuses its buffers, so on a GPU Warp sees
+        # the same addresses every step and replays one captured CUDA graph instead of capturing
+        # (and keeping alive) a new one per buffer set. `state` is always the current one.
+        self._step = jax.jit(env.step, donate_argnums=0)
         self._sample_goals = jax.jit(env.sample_goals)
         self._key = jax.random.key(0)
         self._state: State | None = None
@@ -163,7 +166,7 @@ class MwjaxEnv(gym.Env):
         self.action_space = gym.spaces.Box(-1.0, 1.0, (4,), dtype=np.float32)
         self.task_name = env_name
         self._reset = jax.jit(self.env.reset)
-        self._step = jax.jit(self.env.step)
+        self._step = jax.jit(self.env.step, donate_argnums=0)  # as in MwjaxVectorEnv
         self._key = jax.random.key(0 if seed is None else seed)
         self._state: State | None = None
 

@@ -251,6 +251,8 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=2)
     parser.add_argument("--physics", choices=["default", "fast"], default="default")
     parser.add_argument("--physics-only", action="store_true", help="time the physics calls alone")
+    parser.add_argument("--contacts", type=int, default=None, help="PhysicsConfig.contacts_per_env")
+    parser.add_argument("--constraints", type=int, default=None, help="PhysicsConfig.constraints_per_env")
     parser.add_argument(
         "--graph-mode",
         default=None,
@@ -274,7 +276,10 @@ def main() -> None:
     parser.add_argument("--out", default=None, help="JSON path (default: benchmarks/results/...)")
     args = parser.parse_args()
     physics = mwjax.PhysicsConfig() if args.physics == "default" else mwjax.PhysicsConfig.fast()
-    physics = dataclasses.replace(physics, graph_mode=args.graph_mode)
+    buffers = {"contacts_per_env": args.contacts, "constraints_per_env": args.constraints}
+    physics = dataclasses.replace(
+        physics, graph_mode=args.graph_mode, **{k: v for k, v in buffers.items() if v is not None}
+    )
 
     device = jax.devices()[0]
     rows, adapter = [], []
@@ -324,6 +329,8 @@ def main() -> None:
         "date": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
         "physics": args.physics,
         "graph_mode": args.graph_mode,
+        "contacts_per_env": physics.contacts_per_env,
+        "constraints_per_env": physics.constraints_per_env,
         "xla_flags": os.environ.get("XLA_FLAGS"),
         "warmup_rollout": not args.no_warmup,
         "jax": jax.__version__,

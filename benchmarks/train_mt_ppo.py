@@ -43,7 +43,7 @@ Array = jax.Array
 class Config:
     task_set: str | tuple[str, ...] = "MT10"
     envs_per_task: int = 3276
-    unroll: int = 32
+    unroll: int = 16
     minibatches: int = 32
     epochs: int = 4
     learning_rate: float = 3e-4
@@ -57,7 +57,7 @@ class Config:
     init_log_std: float = -0.5
     # One output head per task on the shared trunk (policy mean and value), picked by the task id,
     # as in the multi-head agents of Meta-World's baselines (MTMHSAC).
-    multi_head: bool = False
+    multi_head: bool = True
     reward_version: str = "v2"
     max_episode_steps: int = 500
     seed: int = 0
@@ -474,7 +474,7 @@ def main() -> None:
     )
     parser.add_argument("--init-log-std", type=float, default=defaults.init_log_std)
     parser.add_argument("--seeds", type=int, nargs="+", default=[0])
-    parser.add_argument("--minutes", type=float, default=7.4, help="wall clock per seed, compile included")
+    parser.add_argument("--minutes", type=float, default=8.1, help="wall clock per seed, compile included")
     parser.add_argument("--updates", type=int, default=None, help="stop after this many updates instead")
     parser.add_argument("--log-every", type=int, default=10, help="updates per jitted chunk")
     parser.add_argument("--eval-episodes", type=int, default=50, help="per task, one per goal variant")

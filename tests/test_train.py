@@ -19,6 +19,7 @@ CONFIG = ppo.Config(
     minibatches=2,
     epochs=2,
     max_episode_steps=10,
+    multi_head=False,
 )
 
 

@@ -15,6 +15,15 @@ SCENES_DIR = MODELS_DIR / "sawyer_xyz"
 # that metaworld's 11-value write never reached, so it keeps the compiled default.
 _REFERENCE_WELD_DATA = np.array([0.0, 0.0, 0.0, 0.0, 0.0, 0.0, -1.0, 0.0, 0.0, 0.0, 5.0])
 
+# The scenes set none of these, so the reference runs MuJoCo 3.3.0's defaults, which later
+# versions changed: one contact per convex pair (multi-contact CCD was opt-in, `mjENBL_MULTICCD`;
+# 3.17 has it on unless `mjDSBL_MULTICCD`), 50 CCD iterations (3.17: 35), and no constraint
+# islands (opt-in then, on by default in 3.17). Several contacts per pair also let MJX-Warp's
+# GJK/EPA produce phantom deep contacts between a mug's cylinder and the table box, which threw
+# the mug in coffee-pull.
+_REFERENCE_DISABLE_FLAGS = mujoco.mjtDisableBit.mjDSBL_MULTICCD | mujoco.mjtDisableBit.mjDSBL_ISLAND
+_REFERENCE_CCD_ITERATIONS = 50
+
 
 def scene_names() -> list[str]:
     return sorted(p.name for p in SCENES_DIR.glob("*.xml"))
@@ -40,6 +49,8 @@ def load_scene(scene: str, mocap_bodies: tuple[str, ...] = ()) -> mujoco.MjModel
             raise ValueError(f"body {name!r} of {scene!r} is not a fixed child of the world")
         body.mocap = True
     model = spec.compile()
+    model.opt.disableflags |= _REFERENCE_DISABLE_FLAGS
+    model.opt.ccd_iterations = _REFERENCE_CCD_ITERATIONS
     weld = model.eq_type == mujoco.mjtEq.mjEQ_WELD
     model.eq_data[weld, : len(_REFERENCE_WELD_DATA)] = _REFERENCE_WELD_DATA
     if model.body_mocapid[model.body("mocap").id] != 0:

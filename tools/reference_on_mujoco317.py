@@ -10,6 +10,9 @@ differences. metaworld 3.1.1 pins mujoco 3.3.0, so this needs a scratch venv whe
     # write `self.model.eq_data[i, :11] = ...` instead of `self.model.eq_data[i] = ...`.
     /tmp/ref317/bin/python tools/reference_on_mujoco317.py hand-insert-v3 soccer-v3
 
+`--v330-defaults` puts back the engine defaults 3.3.0 had and 3.17 changed (multi-contact CCD
+off, 50 CCD iterations, no constraint islands), as mwjax's scenes do.
+
 Per task: MT1(task, seed=42), one episode per goal variant, up to 500 steps, success at any step.
 """
 
@@ -26,9 +29,14 @@ import numpy as np
 
 def main() -> None:
     warnings.filterwarnings("ignore")
-    for task in sys.argv[1:]:
+    v330 = "--v330-defaults" in sys.argv[1:]
+    for task in (a for a in sys.argv[1:] if not a.startswith("--")):
         bench = metaworld.MT1(task, seed=42)
         env = bench.train_classes[task]()
+        if v330:
+            off = mujoco.mjtDisableBit
+            env.model.opt.disableflags |= off.mjDSBL_MULTICCD | off.mjDSBL_ISLAND
+            env.model.opt.ccd_iterations = 50
         policy = mw_policies.ENV_POLICY_MAP[task]()
         failed = []
         for index, goal in enumerate(bench.train_tasks):
@@ -43,7 +51,11 @@ def main() -> None:
             if not solved:
                 failed.append(index)
         rate = 1 - len(failed) / len(bench.train_tasks)
-        print(f"mujoco {mujoco.__version__} {task} success {rate:.2f} failed goals {failed}", flush=True)
+        defaults = "3.3.0's engine defaults" if v330 else "its own defaults"
+        print(
+            f"mujoco {mujoco.__version__} ({defaults}) {task} success {rate:.2f} failed goals {failed}",
+            flush=True,
+        )
 
 
 if __name__ == "__main__":

@@ -81,11 +81,12 @@ def main() -> None:
     low, high = (wp.vec3(*np.asarray(b, np.float32)) for b in spec.mocap_bounds)
 
     model = mjw.put_model(_for_warp(group.model, config))
+    rows = env.physics.constraint_rows(group.scene)
     data = mjw.make_data(
         group.model,
         nworld=args.batch,
         naconmax=args.batch * config.contacts_per_env,
-        njmax=config.constraints_per_env,
+        njmax=rows,
     )
     for field in ("qpos", "qvel", "mocap_pos", "mocap_quat", "qacc_warmstart", "ctrl"):
         getattr(data, field).assign(np.asarray(getattr(start, field)))
@@ -124,7 +125,7 @@ def main() -> None:
         f"{args.steps} env steps (5 substeps + kinematics each) under random actions; "
         f"GPU time {step_ms:.2f} ms per env step = {args.batch / step_ms * 1e3:,.0f} env steps/s "
         f"(wall {args.batch * args.steps / wall_s:,.0f} env steps/s with tracing); "
-        f"buffers {config.constraints_per_env} rows, {config.contacts_per_env} contacts per env.",
+        f"buffers {rows} rows, {config.contacts_per_env} contacts per env.",
         "",
         "| function | ms per env step | share |",
         "| --- | ---: | ---: |",

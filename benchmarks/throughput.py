@@ -330,7 +330,7 @@ def main() -> None:
         "physics": args.physics,
         "graph_mode": args.graph_mode,
         "contacts_per_env": physics.contacts_per_env,
-        "constraints_per_env": physics.constraints_per_env,
+        "constraints_per_env": physics.constraints_per_env or "per scene (mwjax.models.constraint_rows)",
         "xla_flags": os.environ.get("XLA_FLAGS"),
         "warmup_rollout": not args.no_warmup,
         "jax": jax.__version__,

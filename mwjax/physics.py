@@ -21,7 +21,7 @@ import mujoco
 import warp
 from mujoco import mjx
 
-from mwjax.models import load_scene
+from mwjax.models import constraint_rows, load_scene
 
 
 @dataclasses.dataclass(frozen=True)
@@ -32,13 +32,12 @@ class PhysicsConfig:
     substeps: int = 5
     iterations: int | None = None
     ls_iterations: int | None = None
-    # Contact and constraint buffers. Warp preallocates them and drops what overflows. MuJoCo C
-    # reaches 223 constraint rows and 54 contacts per env under the reference's sweep-into expert
-    # (175 rows for peg-insert-side; benchmarks/results/reference-constraint-rows-cpu-2026-11-21.md);
-    # with 256 rows, box-box manifolds overflowed on the H200 and dropped constraints. Contacts are
-    # pooled over the batch, constraint rows are per env.
+    # Contact and constraint buffers. Warp preallocates them and drops what overflows. Contacts
+    # are pooled over the batch; constraint rows are per env, and None sizes them per scene from
+    # what MuJoCo C reaches there (`mwjax.models.constraint_rows`): Warp's cost grows with the
+    # rows allocated (benchmarks/results/throughput-buffers-9a338f8-…md).
     contacts_per_env: int = 64
-    constraints_per_env: int = 512
+    constraints_per_env: int | None = None
     # Who captures the CUDA graphs of a Warp step: None is MJX's choice ("warp" on GPU: Warp
     # captures each call and replays it for the same buffer addresses), "jax" lets XLA record the
     # kernels into its own command buffers, "none" launches them one by one. A name of
@@ -49,6 +48,8 @@ class PhysicsConfig:
     box_box_collider: str = "box_box"
 
     def __post_init__(self) -> None:
+        if self.constraints_per_env is not None and self.constraints_per_env < 1:
+            raise ValueError(f"constraints_per_env must be positive or None, not {self.constraints_per_env}")
         if self.box_box_collider not in ("box_box", "convex"):
             raise ValueError(f"box_box_collider must be 'box_box' or 'convex', not {self.box_box_collider!r}")
         _graph_mode(self.graph_mode)
@@ -99,18 +100,21 @@ class Physics:
         """Fresh batched data (the scene's qpos0), one per group."""
         datas = []
         for group in self.groups:
-            model, size = group.model, group.size
-
-            def one(_: jax.Array, model: mujoco.MjModel = model, size: int = size) -> mjx.Data:
-                return mjx.make_data(
-                    model,
-                    impl="warp",
-                    naconmax=size * self.config.contacts_per_env,
-                    njmax=self.config.constraints_per_env,
-                )
-
-            datas.append(jax.vmap(one)(jnp.arange(size)))
+            make = functools.partial(
+                mjx.make_data,
+                group.model,
+                impl="warp",
+                naconmax=group.size * self.config.contacts_per_env,
+                njmax=self.constraint_rows(group.scene),
+            )
+            datas.append(jax.vmap(lambda _, make=make: make())(jnp.arange(group.size)))
         return tuple(datas)
+
+    def constraint_rows(self, scene: str) -> int:
+        """Constraint rows allocated per env of `scene`."""
+        if self.config.constraints_per_env is not None:
+            return self.config.constraints_per_env
+        return constraint_rows(scene)
 
     def step(self, datas: tuple[mjx.Data, ...]) -> tuple[mjx.Data, ...]:
         """`substeps` physics steps, then kinematics so positions describe the new state."""

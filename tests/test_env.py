@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import json
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -10,6 +12,7 @@ import pytest
 import mwjax
 from mwjax import benchmarks
 from mwjax.benchmarks import MT10
+from mwjax.models import MODELS_DIR, constraint_rows
 from mwjax.tasks import TASKS as TASKS_REGISTRY
 
 TASKS = ["reach-v3", "drawer-open-v3", "drawer-close-v3"]  # two share a scene
@@ -127,6 +130,25 @@ def test_bad_arguments():
         mwjax.PhysicsConfig(box_box_collider="gjk")
     with pytest.raises(ValueError, match="unknown graph_mode 'cuda'"):
         mwjax.PhysicsConfig(graph_mode="cuda")
+    with pytest.raises(ValueError, match="constraints_per_env"):
+        mwjax.PhysicsConfig(constraints_per_env=0)
+    with pytest.raises(ValueError, match="no recorded constraint rows"):
+        constraint_rows("sawyer_unknown.xml")
+
+
+def test_constraint_buffers_hold_twice_what_mujoco_c_reaches_in_each_scene(env):
+    table = json.loads((MODELS_DIR / "constraint_rows.json").read_text())["scenes"]
+    by_scene: dict[str, set[str]] = {}
+    for name, spec in TASKS_REGISTRY.items():
+        by_scene.setdefault(spec.scene, set()).add(name)
+    assert {scene: set(entry["tasks"]) for scene, entry in table.items()} == by_scene
+    for scene, entry in table.items():
+        rows = constraint_rows(scene)
+        assert rows >= 2 * entry["max_rows"] and rows >= 128 and rows % 32 == 0
+    for group in env.physics.groups:
+        assert env.physics.constraint_rows(group.scene) == constraint_rows(group.scene)
+    fixed = env.replace(physics=mwjax.PhysicsConfig(constraints_per_env=256))
+    assert {fixed.physics.constraint_rows(g.scene) for g in fixed.physics.groups} == {256}
 
 
 def test_bad_actions(env, compiled, episode):

@@ -1,34 +1,36 @@
 #!/usr/bin/env python
 """The most constraint rows (`data.nefc`) and contacts (`data.ncon`) MuJoCo C reaches per env
-under the reference scripted experts: what `PhysicsConfig.constraints_per_env` has to hold.
+under the reference scripted experts and under uniform random actions: what the per-env
+constraint buffer of each scene has to hold.
 
 Runs in the reference venv (see tools/README_reference.md); never imports mwjax. For each task:
-`gym.make("Meta-World/MT1", env_name=task, seed=0)`, 3 episodes of 300 expert steps.
+`gym.make("Meta-World/MT1", env_name=task, seed=0)`, `--episodes` episodes of `--steps` expert
+steps and as many of random actions (numpy seed 0), rows and contacts read after every substep.
 
     .venv-ref/bin/python tools/reference_constraint_rows.py
         # -> benchmarks/results/reference-constraint-rows-cpu-<date>.md
+        # -> mwjax/models/constraint_rows.json (per scene: the most over its tasks)
 """
 
 from __future__ import annotations
 
 import argparse
 import datetime
+import json
 from pathlib import Path
 
 import gymnasium as gym
 import metaworld  # noqa: F401  (registers the Meta-World/ ids)
 import mujoco
+import numpy as np
 from metaworld.policies import ENV_POLICY_MAP
 
-TASKS = (
-    "peg-insert-side-v3", "sweep-into-v3", "soccer-v3", "hand-insert-v3",
-    "basketball-v3", "pick-place-v3", "assembly-v3", "box-close-v3",
-)  # fmt: skip
+ROOT = Path(__file__).parents[1]
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--tasks", nargs="+", default=list(TASKS))
+    parser.add_argument("--tasks", nargs="+", default=sorted(ENV_POLICY_MAP))
     parser.add_argument("--episodes", type=int, default=3)
     parser.add_argument("--steps", type=int, default=300)
     args = parser.parse_args()
@@ -37,25 +39,53 @@ def main() -> None:
         f"# Constraint rows and contacts per env under the reference experts (MuJoCo C {mujoco.__version__})",
         "",
         f"`tools/reference_constraint_rows.py`, metaworld 3.1.1, seed 0, {args.episodes} episodes of "
-        f"{args.steps} steps, CPU, {date}.",
+        f"{args.steps} steps each of the expert and of random actions, after every substep, CPU, {date}.",
         "",
-        "| task | max constraint rows | max contacts |",
-        "| --- | ---: | ---: |",
+        "| task | scene | max rows, expert | max rows, random | max contacts |",
+        "| --- | --- | ---: | ---: | ---: |",
     ]
+    rng = np.random.default_rng(0)
+    scenes: dict[str, dict] = {}
     for task in args.tasks:
         env = gym.make("Meta-World/MT1", env_name=task, seed=0)
-        policy, data = ENV_POLICY_MAP[task](), env.unwrapped.data
-        rows = contacts = 0
-        for _ in range(args.episodes):
-            obs, _ = env.reset()
-            for _ in range(args.steps):
-                obs, *_ = env.step(policy.get_action(obs))
-                rows, contacts = max(rows, data.nefc), max(contacts, data.ncon)
-        lines.append(f"| {task} | {rows} | {contacts} |")
+        policy, unwrapped = ENV_POLICY_MAP[task](), env.unwrapped
+        model, data = unwrapped.model, unwrapped.data
+        most = {"expert": 0, "random": 0}
+        seen = {"rows": 0, "contacts": 0}
+
+        def stepped(ctrl, n_frames, model=model, data=data, seen=seen):  # gymnasium's, watched
+            data.ctrl[:] = ctrl
+            for _ in range(n_frames):
+                mujoco.mj_step(model, data)
+                seen["rows"] = max(seen["rows"], data.nefc)
+                seen["contacts"] = max(seen["contacts"], data.ncon)
+            mujoco.mj_rnePostConstraint(model, data)
+
+        unwrapped._step_mujoco_simulation = stepped
+        for kind in most:
+            seen["rows"] = 0
+            for _ in range(args.episodes):
+                obs, _ = env.reset()
+                for _ in range(args.steps):
+                    if kind == "expert":
+                        obs, *_ = env.step(np.clip(policy.get_action(obs), -1.0, 1.0))
+                    else:
+                        obs, *_ = env.step(rng.uniform(-1.0, 1.0, 4))
+            most[kind] = seen["rows"]
+        contacts = seen["contacts"]
+        scene = Path(unwrapped.model_name).name
+        lines.append(f"| {task} | {scene} | {most['expert']} | {most['random']} | {contacts} |")
         print(lines[-1], flush=True)
-    out = Path(__file__).parents[1] / "benchmarks" / "results" / f"reference-constraint-rows-cpu-{date}.md"
+        entry = scenes.setdefault(scene, {"max_rows": 0, "max_contacts": 0, "tasks": []})
+        entry["max_rows"] = max(entry["max_rows"], *most.values())
+        entry["max_contacts"] = max(entry["max_contacts"], contacts)
+        entry["tasks"].append(task)
+    out = ROOT / "benchmarks" / "results" / f"reference-constraint-rows-cpu-{date}.md"
     out.write_text("\n".join(lines) + "\n")
-    print(f"-> {out}")
+    table = ROOT / "mwjax" / "models" / "constraint_rows.json"
+    source = f"tools/reference_constraint_rows.py, metaworld 3.1.1 on mujoco {mujoco.__version__}, {date}"
+    table.write_text(json.dumps({"source": source, "scenes": dict(sorted(scenes.items()))}, indent=1) + "\n")
+    print(f"-> {out}, {table}")
 
 
 if __name__ == "__main__":

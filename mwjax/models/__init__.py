@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import json
+import math
 from pathlib import Path
 
 import mujoco
@@ -56,3 +58,14 @@ def load_scene(scene: str, mocap_bodies: tuple[str, ...] = ()) -> mujoco.MjModel
     if model.body_mocapid[model.body("mocap").id] != 0:
         raise AssertionError(f"{scene}: the hand's mocap body must be mocap index 0")
     return model
+
+
+def constraint_rows(scene: str) -> int:
+    """Constraint rows to allocate per env of `scene`: twice the most MuJoCo C reached in it
+    under the reference's experts and under random actions (`constraint_rows.json`, recorded by
+    `tools/reference_constraint_rows.py`), in multiples of 32, at least 128. Warp launches much
+    of its constraint work over every allocated row, used or not, and drops rows that overflow."""
+    table = json.loads((MODELS_DIR / "constraint_rows.json").read_text())["scenes"]
+    if scene not in table:
+        raise ValueError(f"no recorded constraint rows for scene {scene!r}; set constraints_per_env")
+    return max(128, 32 * math.ceil(2 * table[scene]["max_rows"] / 32))

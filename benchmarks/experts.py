@@ -21,7 +21,7 @@ from pathlib import Path
 
 import jax
 import numpy as np
-from throughput import commit
+from throughput import commit, rows_arg
 
 import mwjax
 from mwjax import policies
@@ -39,7 +39,9 @@ def main() -> None:
     parser.add_argument(
         "--contacts", type=int, default=None, help="contacts_per_env (default: PhysicsConfig's)"
     )
-    parser.add_argument("--constraints", type=int, default=None, help="constraints_per_env")
+    parser.add_argument(
+        "--constraints", type=rows_arg, default=None, help="constraints_per_env: rows or per_scene"
+    )
     parser.add_argument(
         "--box-box", default=None, choices=["box_box", "convex"], help="PhysicsConfig.box_box_collider"
     )

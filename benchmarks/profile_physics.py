@@ -28,7 +28,7 @@ import mujoco.mjx.third_party.mujoco_warp as mjw
 import numpy as np
 import warp as wp
 from mujoco.mjx.third_party.mujoco_warp._src import smooth, warp_util
-from throughput import commit
+from throughput import commit, rows_arg
 
 import mwjax
 from mwjax.physics import _for_warp
@@ -66,7 +66,9 @@ def main() -> None:
     parser.add_argument("--batch", type=int, default=65536)
     parser.add_argument("--steps", type=int, default=100, help="env steps timed (after 20 untimed)")
     parser.add_argument("--contacts", type=int, default=None, help="PhysicsConfig.contacts_per_env")
-    parser.add_argument("--constraints", type=int, default=None, help="PhysicsConfig.constraints_per_env")
+    parser.add_argument(
+        "--constraints", type=rows_arg, default=None, help="constraints_per_env: rows or per_scene"
+    )
     parser.add_argument("--out", default=None)
     args = parser.parse_args()
     if not wp.get_device().is_cuda:

@@ -54,6 +54,11 @@ def gpu_memory_used_mib() -> float | None:
         return None
 
 
+def rows_arg(text: str) -> int | str:
+    """A `--constraints` value: rows per env, or "per_scene"."""
+    return text if text == "per_scene" else int(text)
+
+
 def commit() -> str:
     if os.environ.get("MWJAX_COMMIT"):
         return os.environ["MWJAX_COMMIT"]
@@ -252,7 +257,9 @@ def main() -> None:
     parser.add_argument("--physics", choices=["default", "fast"], default="default")
     parser.add_argument("--physics-only", action="store_true", help="time the physics calls alone")
     parser.add_argument("--contacts", type=int, default=None, help="PhysicsConfig.contacts_per_env")
-    parser.add_argument("--constraints", type=int, default=None, help="PhysicsConfig.constraints_per_env")
+    parser.add_argument(
+        "--constraints", type=rows_arg, default=None, help="constraints_per_env: rows or per_scene"
+    )
     parser.add_argument(
         "--graph-mode",
         default=None,
@@ -330,7 +337,7 @@ def main() -> None:
         "physics": args.physics,
         "graph_mode": args.graph_mode,
         "contacts_per_env": physics.contacts_per_env,
-        "constraints_per_env": physics.constraints_per_env or "per scene (mwjax.models.constraint_rows)",
+        "constraints_per_env": physics.constraints_per_env,
         "xla_flags": os.environ.get("XLA_FLAGS"),
         "warmup_rollout": not args.no_warmup,
         "jax": jax.__version__,

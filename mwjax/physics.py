@@ -14,6 +14,7 @@ import copy
 import dataclasses
 import functools
 from collections.abc import Sequence
+from typing import Literal
 
 import jax
 import jax.numpy as jnp
@@ -33,11 +34,12 @@ class PhysicsConfig:
     iterations: int | None = None
     ls_iterations: int | None = None
     # Contact and constraint buffers. Warp preallocates them and drops what overflows. Contacts
-    # are pooled over the batch; constraint rows are per env, and None sizes them per scene from
-    # what MuJoCo C reaches there (`mwjax.models.constraint_rows`): Warp's cost grows with the
-    # rows allocated (benchmarks/results/throughput-buffers-9a338f8-…md).
+    # are pooled over the batch; constraint rows are per env. Warp's cost grows with the rows
+    # allocated (benchmarks/results/throughput-buffers-9a338f8-…md): "per_scene" sizes them from
+    # what MuJoCo C reaches in each scene (`mwjax.models.constraint_rows`). Not the default yet:
+    # its one MT50 run on the GPU failed in Warp's graph capture (README, Performance).
     contacts_per_env: int = 64
-    constraints_per_env: int | None = None
+    constraints_per_env: int | Literal["per_scene"] = 512
     # Who captures the CUDA graphs of a Warp step: None is MJX's choice ("warp" on GPU: Warp
     # captures each call and replays it for the same buffer addresses), "jax" lets XLA record the
     # kernels into its own command buffers, "none" launches them one by one. A name of
@@ -48,8 +50,9 @@ class PhysicsConfig:
     box_box_collider: str = "box_box"
 
     def __post_init__(self) -> None:
-        if self.constraints_per_env is not None and self.constraints_per_env < 1:
-            raise ValueError(f"constraints_per_env must be positive or None, not {self.constraints_per_env}")
+        rows = self.constraints_per_env
+        if rows != "per_scene" and not (isinstance(rows, int) and rows >= 1):
+            raise ValueError(f"constraints_per_env must be a positive int or 'per_scene', not {rows!r}")
         if self.box_box_collider not in ("box_box", "convex"):
             raise ValueError(f"box_box_collider must be 'box_box' or 'convex', not {self.box_box_collider!r}")
         _graph_mode(self.graph_mode)
@@ -112,9 +115,9 @@ class Physics:
 
     def constraint_rows(self, scene: str) -> int:
         """Constraint rows allocated per env of `scene`."""
-        if self.config.constraints_per_env is not None:
-            return self.config.constraints_per_env
-        return constraint_rows(scene)
+        if self.config.constraints_per_env == "per_scene":
+            return constraint_rows(scene)
+        return self.config.constraints_per_env
 
     def step(self, datas: tuple[mjx.Data, ...]) -> tuple[mjx.Data, ...]:
         """`substeps` physics steps, then kinematics so positions describe the new state."""

@@ -130,8 +130,9 @@ def test_bad_arguments():
         mwjax.PhysicsConfig(box_box_collider="gjk")
     with pytest.raises(ValueError, match="unknown graph_mode 'cuda'"):
         mwjax.PhysicsConfig(graph_mode="cuda")
-    with pytest.raises(ValueError, match="constraints_per_env"):
-        mwjax.PhysicsConfig(constraints_per_env=0)
+    for rows in (0, "per_env"):
+        with pytest.raises(ValueError, match="constraints_per_env"):
+            mwjax.PhysicsConfig(constraints_per_env=rows)
     with pytest.raises(ValueError, match="no recorded constraint rows"):
         constraint_rows("sawyer_unknown.xml")
 
@@ -145,10 +146,10 @@ def test_constraint_buffers_hold_twice_what_mujoco_c_reaches_in_each_scene(env):
     for scene, entry in table.items():
         rows = constraint_rows(scene)
         assert rows >= 2 * entry["max_rows"] and rows >= 128 and rows % 32 == 0
-    for group in env.physics.groups:
-        assert env.physics.constraint_rows(group.scene) == constraint_rows(group.scene)
-    fixed = env.replace(physics=mwjax.PhysicsConfig(constraints_per_env=256))
-    assert {fixed.physics.constraint_rows(g.scene) for g in fixed.physics.groups} == {256}
+    assert {env.physics.constraint_rows(g.scene) for g in env.physics.groups} == {512}
+    per_scene = env.replace(physics=mwjax.PhysicsConfig(constraints_per_env="per_scene"))
+    for group in per_scene.physics.groups:
+        assert per_scene.physics.constraint_rows(group.scene) == constraint_rows(group.scene)
 
 
 def test_bad_actions(env, compiled, episode):

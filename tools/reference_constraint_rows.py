@@ -36,7 +36,8 @@ def main() -> None:
     args = parser.parse_args()
     date = datetime.date.today().isoformat()
     lines = [
-        f"# Constraint rows and contacts per env under the reference experts (MuJoCo C {mujoco.__version__})",
+        f"# Constraint rows and contacts per env under the reference experts and random actions "
+        f"(MuJoCo C {mujoco.__version__})",
         "",
         f"`tools/reference_constraint_rows.py`, metaworld 3.1.1, seed 0, {args.episodes} episodes of "
         f"{args.steps} steps each of the expert and of random actions, after every substep, CPU, {date}.",

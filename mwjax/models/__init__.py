@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 import json
 import math
 from pathlib import Path
@@ -65,7 +66,12 @@ def constraint_rows(scene: str) -> int:
     under the reference's experts and under random actions (`constraint_rows.json`, recorded by
     `tools/reference_constraint_rows.py`), in multiples of 32, at least 128. Warp launches much
     of its constraint work over every allocated row, used or not, and drops rows that overflow."""
-    table = json.loads((MODELS_DIR / "constraint_rows.json").read_text())["scenes"]
+    table = _recorded_constraint_rows()
     if scene not in table:
         raise ValueError(f"no recorded constraint rows for scene {scene!r}; set constraints_per_env")
     return max(128, 32 * math.ceil(2 * table[scene]["max_rows"] / 32))
+
+
+@functools.cache
+def _recorded_constraint_rows() -> dict[str, dict]:
+    return json.loads((MODELS_DIR / "constraint_rows.json").read_text())["scenes"]

@@ -25,7 +25,7 @@ import json
 import math
 import time
 from pathlib import Path
-from typing import Any, NamedTuple
+from typing import Any, Literal, NamedTuple
 
 import jax
 import jax.numpy as jnp
@@ -55,9 +55,10 @@ class Config:
     max_grad_norm: float = 1.0
     hidden: tuple[int, ...] = (256, 256, 256)
     init_log_std: float = -0.5
-    # One output head per task on the shared trunk (policy mean and value), picked by the task id,
-    # as in the multi-head agents of Meta-World's baselines (MTMHSAC).
-    multi_head: bool = True
+    # Which layers of the policy and value networks each task has to itself (the rest are shared,
+    # and see the one-hot task id): "shared" none, "multi-head" the output layer, as in the
+    # multi-head agents of Meta-World's baselines (MTMHSAC), "per-task" all of them.
+    architecture: Literal["shared", "multi-head", "per-task"] = "multi-head"
     reward_version: str = "v2"
     max_episode_steps: int = 500
     seed: int = 0
@@ -86,8 +87,10 @@ class RunningStats(NamedTuple):
 
 
 class Params(NamedTuple):
+    """Layers are `(w, b)`; a task's own layer has a leading task axis on both."""
+
     policy: list[tuple[Array, Array]]
-    log_std: Array
+    log_std: Array  # (tasks, 4): each task explores at its own scale
     value: list[tuple[Array, Array]]
 
 
@@ -123,24 +126,41 @@ class Metrics(NamedTuple):
     approx_kl: Array
 
 
-def _mlp_init(key: Array, sizes: list[int], last_scale: float) -> list[tuple[Array, Array]]:
+def _mlp_init(
+    key: Array, sizes: list[int], last_scale: float, own_layers: int, n_tasks: int
+) -> list[tuple[Array, Array]]:
+    """An MLP whose last `own_layers` layers are per task."""
     layers = []
+    n_layers = len(sizes) - 1
     for i, (fan_in, fan_out) in enumerate(zip(sizes[:-1], sizes[1:], strict=True)):
         key, sub = jax.random.split(key)
-        scale = last_scale if i == len(sizes) - 2 else math.sqrt(2.0)
-        w = jax.nn.initializers.orthogonal(scale)(sub, (fan_in, fan_out))
-        layers.append((w, jnp.zeros(fan_out)))
+        init = jax.nn.initializers.orthogonal(last_scale if i == n_layers - 1 else math.sqrt(2.0))
+        if i >= n_layers - own_layers:
+            w = jax.vmap(lambda k, init=init, shape=(fan_in, fan_out): init(k, shape))(
+                jax.random.split(sub, n_tasks)
+            )
+            layers.append((w, jnp.zeros((n_tasks, fan_out))))
+        else:
+            layers.append((init(sub, (fan_in, fan_out)), jnp.zeros(fan_out)))
     return layers
+
+
+def _dense(x: Array, w: Array, b: Array) -> Array:
+    """`x` is `(tasks, n, features)`; a per-task layer applies each task's weights to its rows."""
+    if w.ndim == 2:
+        return x @ w + b
+    return jnp.einsum("tni,tio->tno", x, w) + b[:, None]
 
 
 def _mlp(layers: list[tuple[Array, Array]], x: Array) -> Array:
     for w, b in layers[:-1]:
-        x = jax.nn.swish(x @ w + b)
-    w, b = layers[-1]
-    return x @ w + b
+        x = jax.nn.swish(_dense(x, w, b))
+    return _dense(x, *layers[-1])
 
 
 def _log_prob(mean: Array, log_std: Array, action: Array) -> Array:
+    """Of `(tasks, n, 4)` actions under `(tasks, 4)` log standard deviations."""
+    log_std = log_std[:, None]
     z = (action - mean) * jnp.exp(-log_std)
     return jnp.sum(-0.5 * z**2 - log_std - 0.5 * math.log(2 * math.pi), axis=-1)
 
@@ -160,9 +180,11 @@ class Trainer:
         self.n_tasks = len(self.env.task_list)
         self.obs_size = mwjax.env.OBS_SIZE + self.n_tasks
         self.one_hot = jnp.asarray(self.env.task_one_hot())
-        batch = self.env.num_envs * config.unroll
-        if batch % config.minibatches:
-            raise ValueError(f"{batch} samples per update do not split into {config.minibatches} minibatches")
+        per_task = self.env.envs_per_task * config.unroll
+        if per_task % config.minibatches:
+            raise ValueError(
+                f"{per_task} samples per task and update do not split into {config.minibatches} minibatches"
+            )
         self.optimizer = optax.chain(
             optax.clip_by_global_norm(config.max_grad_norm), optax.adam(config.learning_rate)
         )
@@ -175,11 +197,11 @@ class Trainer:
         cfg = self.config
         policy_key, value_key, env_key, key = jax.random.split(key, 4)
         sizes = [self.obs_size, *cfg.hidden]
-        heads = self.n_tasks if cfg.multi_head else 1
+        own = {"shared": 0, "multi-head": 1, "per-task": len(sizes)}[cfg.architecture]
         params = Params(
-            policy=_mlp_init(policy_key, [*sizes, 4 * heads], 0.01),
-            log_std=jnp.full(4, cfg.init_log_std),
-            value=_mlp_init(value_key, [*sizes, heads], 1.0),
+            policy=_mlp_init(policy_key, [*sizes, 4], 0.01, own, self.n_tasks),
+            log_std=jnp.full((self.n_tasks, 4), cfg.init_log_std),
+            value=_mlp_init(value_key, [*sizes, 1], 1.0, own, self.n_tasks),
         )
         norm = Normalizers(RunningStats.zeros((mwjax.env.OBS_SIZE,)), RunningStats.zeros((self.n_tasks,)))
         env_state = self.env.reset(env_key)
@@ -196,29 +218,29 @@ class Trainer:
         env_obs = jnp.clip((env_obs - norm.obs.mean) / jnp.sqrt(norm.obs.var + 1e-8), -10.0, 10.0)
         return jnp.concatenate([env_obs, task], axis=-1)
 
-    def _head(self, out: Array, obs: Array, size: int) -> Array:
-        """The task's own `size` outputs of a multi-head network (the only head otherwise)."""
-        if not self.config.multi_head:
-            return out
-        task = obs[..., mwjax.env.OBS_SIZE :]
-        return jnp.einsum("...th,...t->...h", out.reshape(*out.shape[:-1], self.n_tasks, size), task)
+    # The networks take `(tasks, n, features)`: every batch here, the evaluator's included, is
+    # laid out task by task, so a flat batch of envs splits into equal runs of rows per task.
+
+    def _by_task(self, x: Array) -> Array:
+        return x.reshape(self.n_tasks, -1, *x.shape[1:])
 
     def _mean(self, params: Params, obs: Array) -> Array:
-        return self._head(_mlp(params.policy, obs), obs, 4)
-
-    def _per_task(self, x: Array) -> Array:
-        """`(unroll, num_envs)` as `(unroll, tasks, envs_per_task)`: the batch is laid out task by task."""
-        return x.reshape(x.shape[0], self.n_tasks, self.env.envs_per_task)
+        return _mlp(params.policy, obs)
 
     def _value(self, params: Params, obs: Array) -> Array:
-        return self._head(_mlp(params.value, obs), obs, 1)[..., 0]
+        return _mlp(params.value, obs)[..., 0]
+
+    def _per_task(self, x: Array) -> Array:
+        """`(unroll, num_envs)` as `(unroll, tasks, envs_per_task)`."""
+        return x.reshape(x.shape[0], self.n_tasks, self.env.envs_per_task, *x.shape[2:])
 
     def policy(self, params_and_norm: tuple[Params, Normalizers], obs: Array, key: Array) -> Array:
-        """The deterministic (mean) action for observations with one-hot task ids appended, as
-        `mwjax.evaluation.evaluator(..., one_hot=True)` calls a policy."""
+        """The deterministic (mean) action for a task-major batch of observations with one-hot
+        task ids appended, as `mwjax.evaluation.evaluator(..., one_hot=True)` calls a policy."""
         del key
         params, norm = params_and_norm
-        return jnp.clip(self._mean(params, self._normalize(norm, obs)), -1.0, 1.0)
+        mean = self._mean(params, self._by_task(self._normalize(norm, obs)))
+        return jnp.clip(mean.reshape(obs.shape[0], 4), -1.0, 1.0)
 
     # -- one PPO update -------------------------------------------------------------------------
 
@@ -228,19 +250,21 @@ class Trainer:
         def step(c: tuple, key: Array) -> tuple[tuple, tuple[Transition, Array]]:
             env_state, episode_success = c
             raw = self._with_task(env_state.obs)
-            obs = self._normalize(norm, raw)
+            obs = self._by_task(self._normalize(norm, raw))
             mean = self._mean(params, obs)
-            action = mean + jnp.exp(params.log_std) * jax.random.normal(key, mean.shape)
-            value = self._value(params, obs)
+            action = mean + jnp.exp(params.log_std)[:, None] * jax.random.normal(key, mean.shape)
+            log_prob = _log_prob(mean, params.log_std, action).reshape(-1)
+            value = self._value(params, obs).reshape(-1)
+            action = action.reshape(-1, 4)
             env_state = self.env.step(env_state, jnp.clip(action, -1.0, 1.0))
             truncated = env_state.truncated
             final_obs = self._normalize(norm, self._with_task(env_state.info["final_obs"]))
-            final_value = self._value(params, final_obs)
+            final_value = self._value(params, self._by_task(final_obs)).reshape(-1)
             success = episode_success | env_state.info["success"]
             transition = Transition(
                 raw,
                 action,
-                _log_prob(mean, params.log_std, action),
+                log_prob,
                 value,
                 env_state.reward,
                 truncated,
@@ -277,7 +301,8 @@ class Trainer:
         self, params: Params, norm: Normalizers, env_state: mwjax.State, batch: Transition, rewards: Array
     ) -> tuple[Array, Array]:
         cfg = self.config
-        last_value = self._value(params, self._normalize(norm, self._with_task(env_state.obs)))
+        last_obs = self._normalize(norm, self._with_task(env_state.obs))
+        last_value = self._value(params, self._by_task(last_obs)).reshape(-1)
         next_values = jnp.concatenate([batch.value[1:], last_value[None]])
         # At a truncation the next obs is the new episode's: bootstrap from the final obs instead.
         next_values = jnp.where(batch.truncated, batch.final_value, next_values)
@@ -302,13 +327,18 @@ class Trainer:
             ratio * advantages, jnp.clip(ratio, 1 - cfg.clip, 1 + cfg.clip) * advantages
         ).mean()
         value_loss = 0.5 * ((self._value(params, mb.obs) - targets) ** 2).mean()
-        entropy = jnp.sum(params.log_std + 0.5 * math.log(2 * math.pi * math.e))
+        entropy = jnp.sum(params.log_std + 0.5 * math.log(2 * math.pi * math.e)) / self.n_tasks
         loss = policy_loss + cfg.value_coef * value_loss - cfg.entropy_coef * entropy
         return loss, (mb.log_prob - log_prob).mean()
 
     def _update(self, carry: Carry, _: None) -> tuple[Carry, Metrics]:
-        cfg = self.config
         carry, batch, episodes, successes = self._rollout(carry)
+        carry, loss, kl = self._learn(carry, batch)
+        return carry, Metrics(episodes, successes, loss, kl)
+
+    def _learn(self, carry: Carry, batch: Transition) -> tuple[Carry, Array, Array]:
+        """The learner's half of an update: returns, advantages and the epochs of minibatches."""
+        cfg = self.config
         carry, rewards = self._scaled_rewards(carry, batch)
         advantages, targets = self._advantages(carry.params, carry.norm, carry.env_state, batch, rewards)
         per_task = self._per_task(advantages)
@@ -322,15 +352,19 @@ class Trainer:
         norm = carry.norm._replace(obs=carry.norm.obs.merge(env_obs, axis=(0, 1)))
         batch = batch._replace(obs=self._normalize(carry.norm, batch.obs))
 
-        flat = jax.tree.map(lambda x: x.reshape(-1, *x.shape[2:]), (batch, advantages, targets))
-        n = flat[1].shape[0]
+        # `(tasks, unroll * envs_per_task, ...)`: every minibatch takes as many samples of each task.
+        by_task = jax.tree.map(
+            lambda x: jnp.moveaxis(self._per_task(x), 1, 0).reshape(self.n_tasks, -1, *x.shape[2:]),
+            (batch, advantages, targets),
+        )
+        n = by_task[1].shape[1]
 
         def epoch(c: tuple, key: Array) -> tuple[tuple, tuple[Array, Array]]:
             order = jax.random.permutation(key, n).reshape(cfg.minibatches, -1)
 
             def minibatch(c: tuple, idx: Array) -> tuple[tuple, tuple[Array, Array]]:
                 params, opt_state = c
-                mb, adv, tgt = jax.tree.map(lambda x: x[idx], flat)
+                mb, adv, tgt = jax.tree.map(lambda x: x[:, idx], by_task)
                 (loss, kl), grads = jax.value_and_grad(self._loss, has_aux=True)(params, mb, adv, tgt)
                 updates, opt_state = self.optimizer.update(grads, opt_state, params)
                 return (optax.apply_updates(params, updates), opt_state), (loss, kl)
@@ -342,13 +376,36 @@ class Trainer:
             epoch, (carry.params, carry.opt_state), jax.random.split(epoch_key, cfg.epochs)
         )
         carry = carry._replace(params=params, opt_state=opt_state, norm=norm, key=key)
-        return carry, Metrics(episodes, successes, loss.mean(), kl.mean())
+        return carry, loss.mean(), kl.mean()
 
     def _train_chunk(self, carry: Carry, updates: int) -> tuple[Carry, Metrics]:
         carry, metrics = jax.lax.scan(self._update, carry, None, length=updates)
         return carry, Metrics(
             metrics.episodes.sum(0), metrics.successes.sum(0), metrics.loss.mean(), metrics.approx_kl.mean()
         )
+
+    def learner_seconds(self, carry: Carry, updates: int) -> float:
+        """Wall time of the learner's half of `updates` updates alone (compile excluded), on a
+        stand-in rollout of the real shapes: what is left of an update is the simulator and the
+        policy acting in it."""
+        batch = jax.eval_shape(self._rollout, carry)[1]
+        keys = iter(jax.random.split(jax.random.key(0), len(jax.tree.leaves(batch))))
+        batch = jax.tree.map(
+            lambda s: (
+                jax.random.normal(next(keys), s.shape)
+                if s.dtype == jnp.float32
+                else jnp.zeros(s.shape, s.dtype)
+            ),
+            batch,
+        )
+        learn = jax.jit(
+            lambda c, b: jax.lax.scan(lambda c, _: (self._learn(c, b)[0], None), c, None, length=updates)[0]
+        )
+        compiled = learn.lower(carry, batch).compile()
+        jax.block_until_ready(compiled(carry, batch))
+        t0 = time.perf_counter()
+        jax.block_until_ready(compiled(carry, batch))
+        return time.perf_counter() - t0
 
     def evaluator(self, num_episodes: int = 50) -> Any:
         return jax.jit(evaluator(self.env, self.policy, num_episodes, one_hot=True))
@@ -359,9 +416,15 @@ class Trainer:
 
 
 def train(
-    config: Config, minutes: float, log_every: int, max_updates: int | None = None, eval_episodes: int = 50
+    config: Config,
+    minutes: float,
+    log_every: int,
+    max_updates: int | None = None,
+    eval_episodes: int = 50,
+    time_learner: bool = False,
 ) -> dict:
-    """Train until `minutes` of wall clock (compile included) or `max_updates`; then evaluate."""
+    """Train until `minutes` of wall clock (compile included) or `max_updates`; then evaluate,
+    and with `time_learner` time the learner alone against the last chunk of updates."""
     start = time.perf_counter()
     trainer = Trainer(config)
     carry = trainer.init(jax.random.key(config.seed))
@@ -399,7 +462,17 @@ def train(
     t0 = time.perf_counter()
     result = trainer.evaluator(eval_episodes)((carry.params, carry.norm), jax.random.key(config.seed + 1000))
     success = np.asarray(result.success_rate)
+    split = {}
+    if time_learner and chunk_s:  # chunk_s is 0 if the only chunk included the compile
+        learner_s = trainer.learner_seconds(carry, n)
+        split = {"time_split": {"updates": n, "update_s": chunk_s, "learner_s": learner_s}}
+        print(
+            f"{n} updates: {chunk_s:.1f}s, of which the learner alone {learner_s:.1f}s "
+            f"({learner_s / chunk_s:.0%}); simulator and acting the rest",
+            flush=True,
+        )
     return {
+        **split,
         "config": dataclasses.asdict(config),
         "curve": curve,
         "train_s": train_s,
@@ -467,10 +540,10 @@ def main() -> None:
     parser.add_argument("--entropy-coef", type=float, default=defaults.entropy_coef)
     parser.add_argument("--reward-version", default=defaults.reward_version)
     parser.add_argument(
-        "--multi-head",
-        action=argparse.BooleanOptionalAction,
-        default=defaults.multi_head,
-        help="one policy and value head per task",
+        "--architecture",
+        choices=["shared", "multi-head", "per-task"],
+        default=defaults.architecture,
+        help="the networks' layers each task has to itself: none, the output layer, all",
     )
     parser.add_argument("--init-log-std", type=float, default=defaults.init_log_std)
     parser.add_argument("--seeds", type=int, nargs="+", default=[0])
@@ -478,6 +551,9 @@ def main() -> None:
     parser.add_argument("--updates", type=int, default=None, help="stop after this many updates instead")
     parser.add_argument("--log-every", type=int, default=10, help="updates per jitted chunk")
     parser.add_argument("--eval-episodes", type=int, default=50, help="per task, one per goal variant")
+    parser.add_argument(
+        "--time-learner", action="store_true", help="after the evaluation, time the learner alone"
+    )
     parser.add_argument("--out", default=None, help="result stem (default: benchmarks/results/train-...)")
     args = parser.parse_args()
 
@@ -493,12 +569,12 @@ def main() -> None:
             epochs=args.epochs,
             learning_rate=args.lr,
             entropy_coef=args.entropy_coef,
-            multi_head=args.multi_head,
+            architecture=args.architecture,
             init_log_std=args.init_log_std,
             reward_version=args.reward_version,
             seed=seed,
         )
-        run = train(config, args.minutes, args.log_every, args.updates, args.eval_episodes)
+        run = train(config, args.minutes, args.log_every, args.updates, args.eval_episodes, args.time_learner)
         run.pop("params")
         print(
             f"seed {seed}: evaluation success {run['eval_success']:.3f} "

@@ -19,7 +19,7 @@ CONFIG = ppo.Config(
     minibatches=2,
     epochs=2,
     max_episode_steps=10,
-    multi_head=False,
+    architecture="shared",
 )
 
 
@@ -53,16 +53,28 @@ def test_the_trained_policy_runs_through_the_evaluator(trainer):
     assert np.all(np.isfinite(np.asarray(result.returns)))
 
 
-def test_multi_head_policy_answers_each_task_with_its_own_head():
-    trainer = ppo.Trainer(dataclasses.replace(CONFIG, multi_head=True))
-    carry = trainer.init(jax.random.key(3))
+def _actions(trainer, carry, params):
     obs = np.asarray(carry.env_state.obs)
     with_task = np.concatenate([obs, trainer.env.task_one_hot()], axis=-1)
-    w, b = carry.params.policy[-1]
-    # Move only the second task's head (its 4 outputs of the last layer).
-    params = carry.params._replace(policy=[*carry.params.policy[:-1], (w, b.at[4:8].add(0.5))])
-    before = np.asarray(trainer.policy((carry.params, carry.norm), with_task, None))
-    after = np.asarray(trainer.policy((params, carry.norm), with_task, None))
+    return np.asarray(trainer.policy((params, carry.norm), with_task, None))
+
+
+@pytest.mark.parametrize(("architecture", "layer"), [("multi-head", -1), ("per-task", 0)])
+def test_a_tasks_own_layers_answer_for_that_task_alone(architecture, layer):
+    trainer = ppo.Trainer(dataclasses.replace(CONFIG, architecture=architecture))
+    carry = trainer.init(jax.random.key(3))
+    w, b = carry.params.policy[layer]
+    assert w.shape[0] == b.shape[0] == 2  # one per task
+    # Move only the second task's copy of the layer.
+    policy = list(carry.params.policy)
+    policy[layer] = (w, b.at[1].add(0.5))
+    before = _actions(trainer, carry, carry.params)
+    after = _actions(trainer, carry, carry.params._replace(policy=policy))
     first, second = slice(0, CONFIG.envs_per_task), slice(CONFIG.envs_per_task, None)
     np.testing.assert_array_equal(after[first], before[first])
     assert np.all(after[second] != before[second])
+
+
+def test_the_learner_can_be_timed_alone(trainer):
+    carry = trainer.init(jax.random.key(4))
+    assert trainer.learner_seconds(carry, 1) > 0

@@ -132,34 +132,13 @@ class Physics:
         # Unrolled: a device-side loop would cost a host round trip per substep on GPU.
         for _ in range(self.config.substeps):
             data = step(data)
-        data = jax.vmap(functools.partial(mjx.kinematics, model))(data)
-        self._keep_captured_graphs()
-        return data
+        return jax.vmap(functools.partial(mjx.kinematics, model))(data)
 
     def kinematics(self, datas: tuple[mjx.Data, ...]) -> tuple[mjx.Data, ...]:
-        datas = tuple(
+        return tuple(
             jax.vmap(functools.partial(mjx.kinematics, group.device_model))(data)
             for group, data in zip(self.groups, datas, strict=True)
         )
-        self._keep_captured_graphs()
-        return datas
-
-    def _keep_captured_graphs(self) -> None:
-        """Let Warp keep a CUDA graph for every physics call of our programs.
-
-        On a GPU, Warp captures each call of an FFI callable as a CUDA graph, keyed by the call
-        and its buffer addresses, and replays it; it keeps 32 per callable, least recently used
-        first out. All scenes share one callable for `mjx.step` (and one for kinematics), and an
-        env step calls it scenes x substeps times: past 32 (MT10 has 40, MT50 180) every call
-        misses, captures its graph again (host work on the critical path) and evicts the next
-        one needed. The evicted graphs' stream handles, freed later by the garbage collector,
-        can also unregister XLA's stream while another call is capturing on it ("Warp error:
-        unknown stream"). Run while tracing, after MJX has created the callables and before any
-        of them runs; a few programs' worth (the step, reset, evaluation) fit in the bound."""
-        limit = 4 * len(self.groups) * (self.config.substeps + 1)
-        for ffi_callable in _warp_ffi_callables():
-            if ffi_callable.graph_cache_max is not None and ffi_callable.graph_cache_max < limit:
-                ffi_callable.graph_cache_max = limit
 
 
 def _for_warp(model: mujoco.MjModel, config: PhysicsConfig) -> mujoco.MjModel:
@@ -172,15 +151,6 @@ def _for_warp(model: mujoco.MjModel, config: PhysicsConfig) -> mujoco.MjModel:
     if config.box_box_collider == "box_box":
         warp_model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_NATIVECCD
     return warp_model
-
-
-def _warp_ffi_callables() -> list:
-    """Warp's registered JAX callables. Warp exposes no public handle to the callables MJX
-    creates, so this reads its registry (checked by tests/test_physics_graphs.py)."""
-    from warp._src.jax import ffi
-
-    with ffi._FFI_REGISTRY_LOCK:
-        return list(ffi._FFI_CALLABLE_REGISTRY.values())
 
 
 def _graph_mode(name: str | None) -> warp.JaxCallableGraphMode | None:

@@ -59,6 +59,12 @@ class Config:
     # and see the one-hot task id): "shared" none, "multi-head" the output layer, as in the
     # multi-head agents of Meta-World's baselines (MTMHSAC), "per-task" all of them.
     architecture: Literal["shared", "multi-head", "per-task"] = "multi-head"
+    # Cut each env's first episode short at a random multiple of `unroll` steps. Otherwise all
+    # envs run their episodes in lockstep and every update learns from one `unroll`-step slice
+    # of the episode (the reach, then the grasp, ...), forgetting the others in turn; legged_gym
+    # starts its envs at random episode lengths for the same reason. Multiples of `unroll` keep
+    # the restarts to a few steps of the first episode (each one resets rows of the whole batch).
+    staggered_starts: bool = True
     reward_version: str = "v2"
     max_episode_steps: int = 500
     seed: int = 0
@@ -116,6 +122,7 @@ class Carry(NamedTuple):
     env_state: mwjax.State
     running_return: Array  # per env, for the reward scale
     episode_success: Array  # per env: success at any step of the current episode
+    first_cut: Array  # per env: the step at which its first episode is cut short, or -1
     key: Array
 
 
@@ -195,7 +202,7 @@ class Trainer:
 
     def _init(self, key: Array) -> Carry:
         cfg = self.config
-        policy_key, value_key, env_key, key = jax.random.split(key, 4)
+        policy_key, value_key, env_key, cut_key, key = jax.random.split(key, 5)
         sizes = [self.obs_size, *cfg.hidden]
         own = {"shared": 0, "multi-head": 1, "per-task": len(sizes)}[cfg.architecture]
         params = Params(
@@ -206,7 +213,13 @@ class Trainer:
         norm = Normalizers(RunningStats.zeros((mwjax.env.OBS_SIZE,)), RunningStats.zeros((self.n_tasks,)))
         env_state = self.env.reset(env_key)
         zeros = jnp.zeros(self.env.num_envs)
-        return Carry(params, self.optimizer.init(params), norm, env_state, zeros, zeros.astype(bool), key)
+        first_cut = jnp.full(self.env.num_envs, -1, jnp.int32)
+        if cfg.staggered_starts:
+            slots = jax.random.randint(cut_key, first_cut.shape, 0, cfg.max_episode_steps // cfg.unroll)
+            first_cut = jnp.where(slots > 0, slots * cfg.unroll, -1)
+        return Carry(
+            params, self.optimizer.init(params), norm, env_state, zeros, zeros.astype(bool), first_cut, key
+        )
 
     def _with_task(self, obs: Array) -> Array:
         return jnp.concatenate([obs, self.one_hot], axis=-1)
@@ -247,8 +260,8 @@ class Trainer:
     def _rollout(self, carry: Carry) -> tuple[Carry, Transition, Array, Array]:
         params, norm = carry.params, carry.norm
 
-        def step(c: tuple, key: Array) -> tuple[tuple, tuple[Transition, Array]]:
-            env_state, episode_success = c
+        def step(c: tuple, key: Array) -> tuple[tuple, tuple[Transition, Array, Array]]:
+            env_state, episode_success, first_cut = c
             raw = self._with_task(env_state.obs)
             obs = self._by_task(self._normalize(norm, raw))
             mean = self._mean(params, obs)
@@ -257,8 +270,11 @@ class Trainer:
             value = self._value(params, obs).reshape(-1)
             action = action.reshape(-1, 4)
             env_state = self.env.step(env_state, jnp.clip(action, -1.0, 1.0))
-            truncated = env_state.truncated
-            final_obs = self._normalize(norm, self._with_task(env_state.info["final_obs"]))
+            full_length = env_state.truncated
+            cut = env_state.steps == first_cut
+            truncated = full_length | cut
+            last_obs = jnp.where(cut[:, None], env_state.obs, env_state.info["final_obs"])
+            final_obs = self._normalize(norm, self._with_task(last_obs))
             final_value = self._value(params, self._by_task(final_obs)).reshape(-1)
             success = episode_success | env_state.info["success"]
             transition = Transition(
@@ -270,17 +286,25 @@ class Trainer:
                 truncated,
                 jnp.where(truncated, final_value, 0.0),
             )
-            ended = truncated & success
-            return (env_state, success & ~truncated), (transition, ended)
+            if self.config.staggered_starts:
+                env_state = jax.lax.cond(
+                    jnp.any(cut), lambda s: self.env.restart(s, cut), lambda s: s, env_state
+                )
+            # Training success counts full-length episodes only; cut ones had less time.
+            ended = full_length & success
+            next_c = (env_state, success & ~truncated, jnp.where(truncated, -1, first_cut))
+            return next_c, (transition, full_length, ended)
 
         key, rollout_key = jax.random.split(carry.key)
         keys = jax.random.split(rollout_key, self.config.unroll)
-        (env_state, episode_success), (batch, ended_success) = jax.lax.scan(
-            step, (carry.env_state, carry.episode_success), keys
+        (env_state, episode_success, first_cut), (batch, ended, ended_success) = jax.lax.scan(
+            step, (carry.env_state, carry.episode_success, carry.first_cut), keys
         )
-        episodes = self._per_task(batch.truncated).sum(axis=(0, 2))
+        episodes = self._per_task(ended).sum(axis=(0, 2))
         successes = self._per_task(ended_success).sum(axis=(0, 2))
-        carry = carry._replace(env_state=env_state, episode_success=episode_success, key=key)
+        carry = carry._replace(
+            env_state=env_state, episode_success=episode_success, first_cut=first_cut, key=key
+        )
         return carry, batch, episodes, successes
 
     def _scaled_rewards(self, carry: Carry, batch: Transition) -> tuple[Carry, Array]:
@@ -546,6 +570,12 @@ def main() -> None:
         help="the networks' layers each task has to itself: none, the output layer, all",
     )
     parser.add_argument("--init-log-std", type=float, default=defaults.init_log_std)
+    parser.add_argument(
+        "--staggered-starts",
+        action=argparse.BooleanOptionalAction,
+        default=defaults.staggered_starts,
+        help="cut each env's first episode at a random multiple of --unroll steps (runs 1-6: off)",
+    )
     parser.add_argument("--seeds", type=int, nargs="+", default=[0])
     parser.add_argument("--minutes", type=float, default=8.1, help="wall clock per seed, compile included")
     parser.add_argument("--updates", type=int, default=None, help="stop after this many updates instead")
@@ -571,6 +601,7 @@ def main() -> None:
             entropy_coef=args.entropy_coef,
             architecture=args.architecture,
             init_log_std=args.init_log_std,
+            staggered_starts=args.staggered_starts,
             reward_version=args.reward_version,
             seed=seed,
         )

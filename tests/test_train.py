@@ -78,3 +78,27 @@ def test_a_tasks_own_layers_answer_for_that_task_alone(architecture, layer):
 def test_the_learner_can_be_timed_alone(trainer):
     carry = trainer.init(jax.random.key(4))
     assert trainer.learner_seconds(carry, 1) > 0
+
+
+def test_staggered_starts_cut_each_first_episode_once_then_run_full_length():
+    config = dataclasses.replace(CONFIG, envs_per_task=4, unroll=2, staggered_starts=True)
+    trainer = ppo.Trainer(config)
+    carry = trainer.init(jax.random.key(5))
+    first_cut = np.asarray(carry.first_cut)
+    assert len(set(first_cut.tolist())) > 1, "the first episodes should end at different steps"
+    rollout = jax.jit(trainer._rollout)
+    truncated, counted = [], 0
+    for _ in range(2 * config.max_episode_steps // config.unroll):
+        carry, batch, episodes, _ = rollout(carry)
+        truncated.append(np.asarray(batch.truncated))
+        counted += int(np.asarray(episodes).sum())
+    truncated = np.concatenate(truncated)  # (steps, envs)
+    full_length = 0
+    for env, cut in enumerate(first_cut):
+        ends = np.flatnonzero(truncated[:, env]) + 1  # as env steps taken so far
+        start = cut if cut > 0 else config.max_episode_steps
+        expected = np.arange(start, len(truncated) + 1, config.max_episode_steps)
+        np.testing.assert_array_equal(ends, expected, err_msg=f"env {env}, first cut at {cut}")
+        full_length += len(expected) - (cut > 0)
+    # Only full-length episodes count toward training success.
+    assert counted == full_length

@@ -577,7 +577,7 @@ def main() -> None:
         help="cut each env's first episode at a random multiple of --unroll steps (runs 1-6: off)",
     )
     parser.add_argument("--seeds", type=int, nargs="+", default=[0])
-    parser.add_argument("--minutes", type=float, default=8.1, help="wall clock per seed, compile included")
+    parser.add_argument("--minutes", type=float, default=8.4, help="wall clock per seed, compile included")
     parser.add_argument("--updates", type=int, default=None, help="stop after this many updates instead")
     parser.add_argument("--log-every", type=int, default=10, help="updates per jitted chunk")
     parser.add_argument("--eval-episodes", type=int, default=50, help="per task, one per goal variant")

@@ -125,11 +125,21 @@ def measure(
         t0 = time.perf_counter()
         state, _ = jax.block_until_ready(compiled(state, jax.random.key(1)))
         first_rollout_s = time.perf_counter() - t0
+    modules_before = warp_kernel_modules()
     times = []
     for i in range(repeats):
         t0 = time.perf_counter()
         state, successes = jax.block_until_ready(compiled(state, jax.random.key(2 + i)))
         times.append(time.perf_counter() - t0)
+    # Warp compiles a kernel module on its first launch on a machine with no kernel cache; a
+    # timed rollout that did so measured the compiler, not the simulator.
+    compiled_in_timing = warp_kernel_modules() - modules_before
+    if compiled_in_timing:
+        print(
+            f"warning: Warp compiled {compiled_in_timing} kernel modules inside the timed rollouts of "
+            f"{benchmark} at {env.num_envs} envs: that figure is not throughput (drop --no-warmup)",
+            flush=True,
+        )
     best = min(times)
     memory_after = gpu_memory_used_mib()
     state_bytes = sum(x.nbytes for x in jax.tree.leaves(state))
@@ -150,7 +160,16 @@ def measure(
         "jax_peak_bytes_in_use": stats.get("peak_bytes_in_use"),
         "gpu_memory_used_mib": memory_after,
         "success_steps_last_rollout": int(successes),
+        "warp_modules_compiled_in_timed_rollouts": compiled_in_timing,
     }
+
+
+def warp_kernel_modules() -> int:
+    """How many compiled modules Warp's kernel cache holds (one folder each)."""
+    import warp
+
+    folder = warp.config.kernel_cache_dir
+    return len(os.listdir(folder)) if folder and os.path.isdir(folder) else 0
 
 
 def measure_adapter(benchmark: str, total: int, steps: int) -> dict:
@@ -214,6 +233,8 @@ def plot(result: dict, path: Path) -> None:
     for i, name in enumerate(dict.fromkeys(r["benchmark"] for r in result["results"])):
         rows = sorted((r for r in result["results"] if r["benchmark"] == name), key=lambda r: r["num_envs"])
         color = f"C{i}"
+        timed_compile = [r for r in rows if r.get("warp_modules_compiled_in_timed_rollouts")]
+        rows = [r for r in rows if r not in timed_compile]
         ax.plot(
             [r["num_envs"] for r in rows],
             [r["env_steps_per_s"] for r in rows],
@@ -221,6 +242,15 @@ def plot(result: dict, path: Path) -> None:
             color=color,
             label=f"mwjax {name}",
         )
+        if timed_compile:
+            ax.plot(
+                [r["num_envs"] for r in timed_compile],
+                [r["env_steps_per_s"] for r in timed_compile],
+                "o",
+                mfc="none",
+                color=color,
+                label=f"mwjax {name}, Warp compiling in the timed rollout",
+            )
         adapter = [r for r in result.get("adapter", []) if r["benchmark"] == name]
         if adapter:
             ax.plot(

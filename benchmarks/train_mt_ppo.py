@@ -133,22 +133,34 @@ class Metrics(NamedTuple):
     approx_kl: Array
 
 
+def _orthogonal(key: Array, shape: tuple[int, ...], scale: float) -> np.ndarray:
+    """`jax.nn.initializers.orthogonal`'s matrices (the last two axes; any leading ones are a
+    batch), with the QR done by NumPy on the host: inside a jitted function on a 2-core CPU, two
+    batched LAPACK QRs running at once can each wait for the other's share of XLA's two-thread
+    pool, and the program hangs (seen in CI's smoke test)."""
+    *batch, n_rows, n_cols = shape
+    normal = jax.random.normal(key, (*batch, max(n_rows, n_cols), min(n_rows, n_cols)))
+    q, r = np.linalg.qr(np.asarray(normal, np.float64))
+    q = q * np.sign(np.diagonal(r, axis1=-2, axis2=-1))[..., None, :]
+    if n_rows < n_cols:
+        q = np.swapaxes(q, -1, -2)
+    return (scale * q).astype(np.float32)
+
+
 def _mlp_init(
     key: Array, sizes: list[int], last_scale: float, own_layers: int, n_tasks: int
 ) -> list[tuple[Array, Array]]:
-    """An MLP whose last `own_layers` layers are per task."""
+    """An MLP whose last `own_layers` layers are per task (host-side: see `_orthogonal`)."""
     layers = []
     n_layers = len(sizes) - 1
     for i, (fan_in, fan_out) in enumerate(zip(sizes[:-1], sizes[1:], strict=True)):
         key, sub = jax.random.split(key)
-        init = jax.nn.initializers.orthogonal(last_scale if i == n_layers - 1 else math.sqrt(2.0))
+        scale = last_scale if i == n_layers - 1 else math.sqrt(2.0)
         if i >= n_layers - own_layers:
-            w = jax.vmap(lambda k, init=init, shape=(fan_in, fan_out): init(k, shape))(
-                jax.random.split(sub, n_tasks)
-            )
-            layers.append((w, jnp.zeros((n_tasks, fan_out))))
+            w = _orthogonal(sub, (n_tasks, fan_in, fan_out), scale)
+            layers.append((jnp.asarray(w), jnp.zeros((n_tasks, fan_out))))
         else:
-            layers.append((init(sub, (fan_in, fan_out)), jnp.zeros(fan_out)))
+            layers.append((jnp.asarray(_orthogonal(sub, (fan_in, fan_out), scale)), jnp.zeros(fan_out)))
     return layers
 
 
@@ -195,12 +207,12 @@ class Trainer:
         self.optimizer = optax.chain(
             optax.clip_by_global_norm(config.max_grad_norm), optax.adam(config.learning_rate)
         )
-        self.init = jax.jit(self._init)
+        self._init_rest = jax.jit(self._init_rest_of_carry)
         self.train_chunk = jax.jit(self._train_chunk, static_argnums=1, donate_argnums=0)
 
     # -- the policy ---------------------------------------------------------------------------
 
-    def _init(self, key: Array) -> Carry:
+    def init(self, key: Array) -> Carry:
         cfg = self.config
         policy_key, value_key, env_key, cut_key, key = jax.random.split(key, 5)
         sizes = [self.obs_size, *cfg.hidden]
@@ -210,6 +222,10 @@ class Trainer:
             log_std=jnp.full((self.n_tasks, 4), cfg.init_log_std),
             value=_mlp_init(value_key, [*sizes, 1], 1.0, own, self.n_tasks),
         )
+        return self._init_rest(params, env_key, cut_key, key)
+
+    def _init_rest_of_carry(self, params: Params, env_key: Array, cut_key: Array, key: Array) -> Carry:
+        cfg = self.config
         norm = Normalizers(RunningStats.zeros((mwjax.env.OBS_SIZE,)), RunningStats.zeros((self.n_tasks,)))
         env_state = self.env.reset(env_key)
         zeros = jnp.zeros(self.env.num_envs)

@@ -133,7 +133,7 @@ class Metrics(NamedTuple):
     approx_kl: Array
 
 
-def _orthogonal(key: Array, shape: tuple[int, ...], scale: float) -> np.ndarray:
+def _orthogonal(key: Array, shape: tuple[int, ...], scale: float) -> Array:
     """`jax.nn.initializers.orthogonal`'s matrices (the last two axes; any leading ones are a
     batch), with the QR done by NumPy on the host: inside a jitted function on a 2-core CPU, two
     batched LAPACK QRs running at once can each wait for the other's share of XLA's two-thread
@@ -144,7 +144,7 @@ def _orthogonal(key: Array, shape: tuple[int, ...], scale: float) -> np.ndarray:
     q = q * np.sign(np.diagonal(r, axis1=-2, axis2=-1))[..., None, :]
     if n_rows < n_cols:
         q = np.swapaxes(q, -1, -2)
-    return (scale * q).astype(np.float32)
+    return jnp.asarray(scale * q, jnp.float32)
 
 
 def _mlp_init(
@@ -156,11 +156,8 @@ def _mlp_init(
     for i, (fan_in, fan_out) in enumerate(zip(sizes[:-1], sizes[1:], strict=True)):
         key, sub = jax.random.split(key)
         scale = last_scale if i == n_layers - 1 else math.sqrt(2.0)
-        if i >= n_layers - own_layers:
-            w = _orthogonal(sub, (n_tasks, fan_in, fan_out), scale)
-            layers.append((jnp.asarray(w), jnp.zeros((n_tasks, fan_out))))
-        else:
-            layers.append((jnp.asarray(_orthogonal(sub, (fan_in, fan_out), scale)), jnp.zeros(fan_out)))
+        tasks = (n_tasks,) if i >= n_layers - own_layers else ()
+        layers.append((_orthogonal(sub, (*tasks, fan_in, fan_out), scale), jnp.zeros((*tasks, fan_out))))
     return layers
 
 

@@ -17,7 +17,8 @@ import numpy as np
 from mujoco import mjx
 
 import mwjax
-from mwjax import physics, policies
+from mwjax import policies
+from mwjax.physics import PhysicsConfig
 from mwjax.tasks import get_task
 
 TASK, GOAL, STEPS = "hand-insert-v3", 16, 45
@@ -50,13 +51,8 @@ def main() -> None:
         f"box velocity {np.round(data.qvel[BOX_VEL], 5)}"
     )
 
-    for label, for_warp in (("mjc_BoxBox port", physics._for_warp), ("convex path", lambda m: m)):
-        physics_for_warp = physics._for_warp
-        physics._for_warp = for_warp
-        try:
-            variant = env.replace()
-        finally:
-            physics._for_warp = physics_for_warp
+    for label, collider in (("mjc_BoxBox port", "box_box"), ("convex path", "convex")):
+        variant = env.replace(physics=PhysicsConfig(box_box_collider=collider))
         moved = jax.jit(lambda d, act, e=variant: e.physics.step(e._apply_action(d, act)))(
             state.physics, action
         )

@@ -31,7 +31,7 @@ from mujoco.mjx.third_party.mujoco_warp._src import smooth, warp_util
 from throughput import commit, rows_arg
 
 import mwjax
-from mwjax.physics import _for_warp
+from mwjax.physics import warp_model
 
 RESULTS = Path(__file__).parent / "results"
 
@@ -82,7 +82,7 @@ def main() -> None:
     spec = mwjax.tasks.TASKS[args.task]
     low, high = (wp.vec3(*np.asarray(b, np.float32)) for b in spec.mocap_bounds)
 
-    model = mjw.put_model(_for_warp(group.model, config))
+    model = mjw.put_model(warp_model(group.scene, group.mocap_bodies, config))
     rows = env.physics.constraint_rows(group.scene)
     data = mjw.make_data(
         group.model,

@@ -10,7 +10,6 @@ without touching tasks, rewards or the env.
 
 from __future__ import annotations
 
-import copy
 import dataclasses
 import functools
 from collections.abc import Sequence
@@ -45,7 +44,7 @@ class PhysicsConfig:
     # kernels into its own command buffers, "none" launches them one by one. A name of
     # `warp.JaxCallableGraphMode`, lower case.
     graph_mode: str | None = None
-    # "box_box": Warp's port of MuJoCo C's `mjc_BoxBox` (C's collider, see `_for_warp`);
+    # "box_box": Warp's port of MuJoCo C's `mjc_BoxBox` (C's collider, see `warp_model`);
     # "convex": Warp's general convex collider (GJK/EPA), MJX-Warp's own default.
     box_box_collider: str = "box_box"
 
@@ -83,21 +82,25 @@ class Physics:
         groups = []
         start = 0
         for scene, mocap_bodies, size in scenes:
-            model = _configured(load_scene(scene, mocap_bodies), config)
             groups.append(
                 SceneGroup(
                     scene=scene,
                     mocap_bodies=mocap_bodies,
                     start=start,
                     size=size,
-                    model=model,
+                    model=_configured(load_scene(scene, mocap_bodies), config),
                     device_model=mjx.put_model(
-                        _for_warp(model, config), impl="warp", graph_mode=_graph_mode(config.graph_mode)
+                        warp_model(scene, mocap_bodies, config),
+                        impl="warp",
+                        graph_mode=_graph_mode(config.graph_mode),
                     ),
                 )
             )
             start += size
         self.groups: tuple[SceneGroup, ...] = tuple(groups)
+        # The model is closed over, not a vmap argument: as an argument, every call hashes all
+        # of its NumPy fields (meshes included) while tracing.
+        self._substeps = tuple(jax.jit(jax.vmap(functools.partial(mjx.step, g.device_model))) for g in groups)
 
     def make_data(self) -> tuple[mjx.Data, ...]:
         """Fresh batched data (the scene's qpos0), one per group."""
@@ -125,14 +128,13 @@ class Physics:
 
     def step_group(self, g: int, data: mjx.Data) -> mjx.Data:
         """`step` for group `g` alone."""
-        # The model is closed over, not a vmap argument: as an argument, every call hashes all
-        # of its NumPy fields (meshes included) while tracing.
-        model = self.groups[g].device_model
-        step = jax.vmap(functools.partial(mjx.step, model))
-        # Unrolled: a device-side loop would cost a host round trip per substep on GPU.
+        substep = self._substeps[g]
+        # Unrolled: a device-side loop would cost a host round trip per substep on GPU. Each
+        # substep calls the same jitted function, so the scene's physics is traced and lowered
+        # once, not once per substep (lowering is most of a warm-cache compile).
         for _ in range(self.config.substeps):
-            data = step(data)
-        return jax.vmap(functools.partial(mjx.kinematics, model))(data)
+            data = substep(data)
+        return jax.vmap(functools.partial(mjx.kinematics, self.groups[g].device_model))(data)
 
     def kinematics(self, datas: tuple[mjx.Data, ...]) -> tuple[mjx.Data, ...]:
         return tuple(
@@ -141,16 +143,17 @@ class Physics:
         )
 
 
-def _for_warp(model: mujoco.MjModel, config: PhysicsConfig) -> mujoco.MjModel:
-    """MuJoCo C collides two boxes with `mjc_BoxBox` (a full contact manifold). MJX-Warp sends box
-    pairs to its general convex collider unless native CCD is disabled, a flag that in Warp only
-    selects its port of `mjc_BoxBox`; the convex path finds fewer contacts (6 instead of C's 10
-    on a hand-insert grasp), and grasps held by box pads then slip. So the device model sets it
-    (a copy: the host model stays MuJoCo C's, for anything that steps it there)."""
-    warp_model = copy.copy(model)
+def warp_model(scene: str, mocap_bodies: tuple[str, ...], config: PhysicsConfig) -> mujoco.MjModel:
+    """The scene as MJX-Warp runs it: without its visual meshes (`load_scene`), and with box pairs
+    sent to MuJoCo C's collider. MuJoCo C collides two boxes with `mjc_BoxBox` (a full contact
+    manifold). MJX-Warp sends box pairs to its general convex collider unless native CCD is
+    disabled, a flag that in Warp only selects its port of `mjc_BoxBox`; the convex path finds
+    fewer contacts (6 instead of C's 10 on a hand-insert grasp), and grasps held by box pads then
+    slip. The host model (`SceneGroup.model`) stays MuJoCo C's, for anything that steps it there."""
+    model = _configured(load_scene(scene, mocap_bodies, visual_meshes=False), config)
     if config.box_box_collider == "box_box":
-        warp_model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_NATIVECCD
-    return warp_model
+        model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_NATIVECCD
+    return model
 
 
 def _graph_mode(name: str | None) -> warp.JaxCallableGraphMode | None:

@@ -6,13 +6,14 @@ import json
 
 import jax
 import jax.numpy as jnp
+import mujoco
 import numpy as np
 import pytest
 
 import mwjax
 from mwjax import benchmarks
 from mwjax.benchmarks import MT10
-from mwjax.models import MODELS_DIR, constraint_rows
+from mwjax.models import MODELS_DIR, constraint_rows, load_scene, scene_names
 from mwjax.tasks import TASKS as TASKS_REGISTRY
 
 TASKS = ["reach-v3", "drawer-open-v3", "drawer-close-v3"]  # two share a scene
@@ -150,6 +151,24 @@ def test_constraint_buffers_hold_twice_what_mujoco_c_reaches_in_each_scene(env):
     per_scene = env.replace(physics=mwjax.PhysicsConfig(constraints_per_env="per_scene"))
     for group in per_scene.physics.groups:
         assert per_scene.physics.constraint_rows(group.scene) == constraint_rows(group.scene)
+
+
+@pytest.mark.parametrize("scene", scene_names())
+def test_the_device_scene_without_visual_meshes_steps_exactly_as_the_full_scene(scene):
+    full, physics_only = load_scene(scene), load_scene(scene, visual_meshes=False)
+    assert physics_only.nmeshvert < full.nmeshvert
+    rng = np.random.default_rng(0)
+    runs = [(model, mujoco.MjData(model)) for model in (full, physics_only)]
+    for _ in range(60):
+        hand, grip = rng.uniform(-0.01, 0.01, 3), rng.uniform(-1.0, 1.0)
+        for model, data in runs:
+            data.mocap_pos[0] += hand
+            data.ctrl[:] = [grip, -grip]
+            mujoco.mj_step(model, data, nstep=5)
+        (_, a), (_, b) = runs
+        assert a.ncon == b.ncon
+        np.testing.assert_array_equal(a.qpos, b.qpos)
+        np.testing.assert_array_equal(a.xpos, b.xpos)
 
 
 def test_bad_actions(env, compiled, episode):

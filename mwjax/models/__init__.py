@@ -32,13 +32,15 @@ def scene_names() -> list[str]:
     return sorted(p.name for p in SCENES_DIR.glob("*.xml"))
 
 
-def load_scene(scene: str, mocap_bodies: tuple[str, ...] = ()) -> mujoco.MjModel:
+def load_scene(scene: str, mocap_bodies: tuple[str, ...] = (), visual_meshes: bool = True) -> mujoco.MjModel:
     """Compiles `sawyer_xyz/<scene>` as the reference sees it after construction.
 
     `mocap_bodies` names fixed world children that a task moves at reset (the reference writes
     `model.body_pos`). They become mocap bodies in our copy so that their pose is per-env state
     (`data.mocap_pos`) instead of a model field shared by every env of a batch. Their index in
     `mocap_pos` follows body order; the hand's mocap stays index 0.
+
+    `visual_meshes=False` gives the physics-only copy a device runs (see `_without_visual_meshes`).
     """
     path = SCENES_DIR / scene
     if not path.is_file():
@@ -51,13 +53,41 @@ def load_scene(scene: str, mocap_bodies: tuple[str, ...] = ()) -> mujoco.MjModel
         if body.parent.name != "world" or body.first_joint() is not None:
             raise ValueError(f"body {name!r} of {scene!r} is not a fixed child of the world")
         body.mocap = True
-    model = spec.compile()
+    model = spec.compile() if visual_meshes else _without_visual_meshes(spec)
     model.opt.disableflags |= _REFERENCE_DISABLE_FLAGS
     model.opt.ccd_iterations = _REFERENCE_CCD_ITERATIONS
     weld = model.eq_type == mujoco.mjtEq.mjEQ_WELD
     model.eq_data[weld, : len(_REFERENCE_WELD_DATA)] = _REFERENCE_WELD_DATA
     if model.body_mocapid[model.body("mocap").id] != 0:
         raise AssertionError(f"{scene}: the hand's mocap body must be mocap index 0")
+    return model
+
+
+def _without_visual_meshes(spec: mujoco.MjSpec) -> mujoco.MjModel:
+    """The scene with each mesh geom that collides with nothing (the arm's and the objects'
+    looks) turned into a point-sized sphere at the same frame, and the meshes left unused
+    dropped. Three quarters of a scene's mesh data is such looks, and MJX-Warp embeds every
+    mesh array in the compiled step as a constant, once per scene. Masses, inertias and every
+    frame are checked to be bit-identical to the full scene's."""
+    full = spec.compile()
+    colliding_meshes = set()
+    for geom in spec.geoms:
+        if geom.type != mujoco.mjtGeom.mjGEOM_MESH:
+            continue
+        if geom.contype or geom.conaffinity:
+            colliding_meshes.add(geom.meshname)
+            continue
+        # MuJoCo moved the geom's frame to its mesh's inertial frame; keep that frame.
+        geom.pos, geom.quat = full.geom_pos[geom.id], full.geom_quat[geom.id]
+        geom.alt.type = mujoco.mjtOrientation.mjORIENTATION_QUAT  # not euler/axisangle over it
+        geom.type, geom.meshname, geom.size = mujoco.mjtGeom.mjGEOM_SPHERE, "", [1e-6, 0.0, 0.0]
+    for mesh in list(spec.meshes):
+        if mesh.name not in colliding_meshes:
+            spec.delete(mesh)
+    model = spec.compile()
+    for field in ("body_mass", "body_inertia", "body_ipos", "body_iquat", "geom_pos", "geom_quat", "qpos0"):
+        if not np.array_equal(getattr(model, field), getattr(full, field)):
+            raise AssertionError(f"dropping visual meshes changed {field}")
     return model
 
 

@@ -14,7 +14,8 @@ adapter (`mwjax.make_vector`, one jitted call and a NumPy transfer per step) at 
 sizes. `--plot` saves the scaling curve (env steps/s against batch size) as a PNG beside the JSON.
 `--jax-cache DIR` turns on JAX's persistent compilation cache: a second process with the same
 sets and batch sizes then loads the compiled programs instead of compiling them (the "warm cache"
-compile time; tracing and lowering still run).
+compile time; tracing and lowering still run). `--profile-compile` writes a cProfile of each
+step's compile after lowering (XLA, or the cache load) beside the JSON.
 
 On a GPU set XLA_PYTHON_CLIENT_MEM_FRACTION (~0.45) so JAX leaves Warp room.
 """
@@ -22,11 +23,14 @@ On a GPU set XLA_PYTHON_CLIENT_MEM_FRACTION (~0.45) so JAX leaves Warp room.
 from __future__ import annotations
 
 import argparse
+import cProfile
 import dataclasses
 import datetime
+import io
 import json
 import os
 import platform
+import pstats
 import shlex
 import subprocess
 import sys
@@ -81,6 +85,7 @@ def measure(
     physics: mwjax.PhysicsConfig,
     physics_only_mode: bool = False,
     warmup: bool = True,
+    compile_profile: Path | None = None,
 ) -> dict:
     n_tasks = len(task_names(benchmark))
     if total % n_tasks:
@@ -115,11 +120,21 @@ def measure(
     t0 = time.perf_counter()
     state = jax.block_until_ready(reset(jax.random.key(0)))
     reset_compile_s = time.perf_counter() - t0
+    profiler = cProfile.Profile() if compile_profile else None
     t0 = time.perf_counter()
     lowered = run.lower(state, jax.random.key(1))
     lower_s = time.perf_counter() - t0
+    if profiler:  # not the lowering: that is Python tracing, which a profiler slows down
+        profiler.enable()
     compiled = lowered.compile()
     compile_s = time.perf_counter() - t0
+    if profiler:
+        profiler.disable()
+        write_profile(
+            profiler,
+            compile_profile,
+            f"{benchmark}, {env.num_envs} envs: lower {lower_s:.1f} s, lower + compile {compile_s:.1f} s",
+        )
     first_rollout_s = None
     if warmup:  # Warp compiles or loads its kernels on the first call
         t0 = time.perf_counter()
@@ -162,6 +177,18 @@ def measure(
         "success_steps_last_rollout": int(successes),
         "warp_modules_compiled_in_timed_rollouts": compiled_in_timing,
     }
+
+
+def write_profile(profiler: cProfile.Profile, path: Path, title: str) -> None:
+    """The profile's heaviest calls, by cumulative and by own time, as text."""
+    text = io.StringIO()
+    text.write(f"{title}\n")
+    stats = pstats.Stats(profiler, stream=text)
+    stats.sort_stats("cumulative").print_stats(50)
+    stats.sort_stats("tottime").print_stats(30)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(text.getvalue())
+    print(f"compile profile -> {path}", flush=True)
 
 
 def warp_kernel_modules() -> int:
@@ -318,6 +345,9 @@ def main() -> None:
     parser.add_argument("--plot", action="store_true", help="save the scaling curve as a PNG")
     parser.add_argument("--jax-cache", metavar="DIR", default=None, help="persistent compilation cache")
     parser.add_argument("--out", default=None, help="JSON path (default: benchmarks/results/...)")
+    parser.add_argument(
+        "--profile-compile", action="store_true", help="cProfile each step's compile after lowering"
+    )
     args = parser.parse_args()
     if args.jax_cache:
         jax.config.update("jax_compilation_cache_dir", args.jax_cache)
@@ -331,13 +361,28 @@ def main() -> None:
     )
 
     device = jax.devices()[0]
+    device_name = getattr(device, "device_kind", str(device))
+    today = datetime.datetime.now(datetime.timezone.utc).date().isoformat()
+    out = Path(args.out) if args.out else RESULTS / f"throughput-{device_name.replace(' ', '_')}-{today}.json"
     rows, adapter = [], []
     for benchmark in args.sets:
         n_tasks = len(task_names(benchmark))
         for total in args.batch:
             total = total - total % n_tasks
+            profile = (
+                out.with_name(f"{out.stem}-compile-{benchmark.replace(':', '-')}-{total}.txt")
+                if args.profile_compile
+                else None
+            )
             row = measure(
-                benchmark, total, args.steps, args.repeats, physics, args.physics_only, not args.no_warmup
+                benchmark,
+                total,
+                args.steps,
+                args.repeats,
+                physics,
+                args.physics_only,
+                not args.no_warmup,
+                profile,
             )
             rows.append(row)
             print(
@@ -371,7 +416,7 @@ def main() -> None:
                 flush=True,
             )
     result = {
-        "device": getattr(device, "device_kind", str(device)),
+        "device": device_name,
         "platform": device.platform,
         "host": platform.node(),
         "commit": commit(),
@@ -389,11 +434,6 @@ def main() -> None:
         "adapter": adapter,
         "reference": reference,
     }
-    out = (
-        Path(args.out)
-        if args.out
-        else RESULTS / (f"throughput-{result['device'].replace(' ', '_')}-{result['date'][:10]}.json")
-    )
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(json.dumps(result, indent=2))
     print()

@@ -62,7 +62,7 @@ def gpu_memory_used_mib() -> float | None:
 
 
 def rows_arg(text: str) -> int | str:
-    """A `--constraints` value: rows per env, or "per_scene"."""
+    """A `--constraints` or `--ccd-pairs` value: a count per env, or "per_scene"."""
     return text if text == "per_scene" else int(text)
 
 
@@ -324,6 +324,9 @@ def main() -> None:
         "--constraints", type=rows_arg, default=None, help="constraints_per_env: rows or per_scene"
     )
     parser.add_argument(
+        "--ccd-pairs", type=rows_arg, default=None, help="ccd_pairs_per_env: slots or per_scene"
+    )
+    parser.add_argument(
         "--graph-mode",
         default=None,
         help="PhysicsConfig.graph_mode: who captures the CUDA graphs (warp, jax, none, warp_staged, ...)",
@@ -355,7 +358,11 @@ def main() -> None:
         jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.0)
         jax.config.update("jax_persistent_cache_min_entry_size_bytes", -1)
     physics = mwjax.PhysicsConfig() if args.physics == "default" else mwjax.PhysicsConfig.fast()
-    buffers = {"contacts_per_env": args.contacts, "constraints_per_env": args.constraints}
+    buffers = {
+        "contacts_per_env": args.contacts,
+        "constraints_per_env": args.constraints,
+        "ccd_pairs_per_env": args.ccd_pairs,
+    }
     physics = dataclasses.replace(
         physics, graph_mode=args.graph_mode, **{k: v for k, v in buffers.items() if v is not None}
     )
@@ -425,6 +432,7 @@ def main() -> None:
         "graph_mode": args.graph_mode,
         "contacts_per_env": physics.contacts_per_env,
         "constraints_per_env": physics.constraints_per_env,
+        "ccd_pairs_per_env": physics.ccd_pairs_per_env,
         "xla_flags": os.environ.get("XLA_FLAGS"),
         "warmup_rollout": not args.no_warmup,
         "jax": jax.__version__,

@@ -21,7 +21,7 @@ import mujoco
 import warp
 from mujoco import mjx
 
-from mwjax.models import constraint_rows, load_scene
+from mwjax.models import ccd_pairs, constraint_rows, load_scene
 
 
 @dataclasses.dataclass(frozen=True)
@@ -39,6 +39,13 @@ class PhysicsConfig:
     # its one MT50 run on the GPU failed in Warp's graph capture (README, Performance).
     contacts_per_env: int = 64
     constraints_per_env: int | Literal["per_scene"] = 512
+    # Slots of scratch for Warp's convex collider (GJK/EPA), pooled over a scene's batch for each
+    # pair of geom types: one per geom pair that it finds in contact (`naccdmax`); a pair past
+    # the last slot is dropped (`Physics.overflow` says so). Warp allocates ~5.5 KB per slot in
+    # every collision call, outside JAX's memory. MJX's default is one slot per contact (64 per
+    # env, ~350 KB per env); "per_scene" gives each scene twice the most such pairs MuJoCo C had
+    # in contact at once (`mwjax.models.ccd_pairs`): 4 to 32.
+    ccd_pairs_per_env: int | Literal["per_scene"] = "per_scene"
     # Who captures the CUDA graphs of a Warp step: None is MJX's choice ("warp" on GPU: Warp
     # captures each call and replays it for the same buffer addresses), "jax" lets XLA record the
     # kernels into its own command buffers, "none" launches them one by one. A name of
@@ -54,6 +61,12 @@ class PhysicsConfig:
             raise ValueError(f"constraints_per_env must be a positive int or 'per_scene', not {rows!r}")
         if self.box_box_collider not in ("box_box", "convex"):
             raise ValueError(f"box_box_collider must be 'box_box' or 'convex', not {self.box_box_collider!r}")
+        pairs = self.ccd_pairs_per_env
+        if pairs != "per_scene" and not (isinstance(pairs, int) and 1 <= pairs <= self.contacts_per_env):
+            raise ValueError(
+                f"ccd_pairs_per_env must be 'per_scene' or an int in [1, contacts_per_env="
+                f"{self.contacts_per_env}], not {pairs!r}"
+            )
         _graph_mode(self.graph_mode)
 
     @classmethod
@@ -108,6 +121,7 @@ class Physics:
                 group.model,
                 impl="warp",
                 naconmax=group.size * self.config.contacts_per_env,
+                naccdmax=group.size * self.ccd_pairs(group.scene),
                 njmax=self.constraint_rows(group.scene),
             )
             datas.append(jax.vmap(lambda _, make=make: make())(jnp.arange(group.size)))
@@ -118,6 +132,13 @@ class Physics:
         if self.config.constraints_per_env == "per_scene":
             return constraint_rows(scene)
         return self.config.constraints_per_env
+
+    def ccd_pairs(self, scene: str) -> int:
+        """Convex-collider slots allocated per env of `scene`, at most `contacts_per_env`."""
+        pairs = self.config.ccd_pairs_per_env
+        if pairs == "per_scene":
+            return min(ccd_pairs(scene), self.config.contacts_per_env)
+        return pairs
 
     def step(self, datas: tuple[mjx.Data, ...]) -> tuple[mjx.Data, ...]:
         """`substeps` physics steps, then kinematics so positions describe the new state."""
@@ -135,6 +156,13 @@ class Physics:
         for _ in range(self.config.substeps):
             data = step(data)
         return jax.vmap(functools.partial(mjx.kinematics, model))(data)
+
+    def overflow(self, datas: tuple[mjx.Data, ...]) -> jax.Array:
+        """Per env (rows in batch order), the buffers that overflowed since its data was made, as
+        Warp's `OverflowType` bits (contacts, constraint rows, CCD slots); 0 when none did. Warp
+        drops what does not fit, so a nonzero value means that env's physics left the reference's.
+        MJX has no public accessor for Warp's flags, hence the private field."""
+        return jnp.concatenate([data._impl.overflow for data in datas])
 
     def kinematics(self, datas: tuple[mjx.Data, ...]) -> tuple[mjx.Data, ...]:
         return tuple(

@@ -9,11 +9,12 @@ import jax.numpy as jnp
 import mujoco
 import numpy as np
 import pytest
+from mujoco.mjx.third_party.mujoco_warp import OverflowType
 
 import mwjax
-from mwjax import benchmarks
+from mwjax import benchmarks, policies
 from mwjax.benchmarks import MT10
-from mwjax.models import MODELS_DIR, constraint_rows, load_scene, scene_names
+from mwjax.models import MODELS_DIR, ccd_pairs, constraint_rows, load_scene, scene_names
 from mwjax.tasks import TASKS as TASKS_REGISTRY
 
 TASKS = ["reach-v3", "drawer-open-v3", "drawer-close-v3"]  # two share a scene
@@ -136,6 +137,11 @@ def test_bad_arguments():
             mwjax.PhysicsConfig(constraints_per_env=rows)
     with pytest.raises(ValueError, match="no recorded constraint rows"):
         constraint_rows("sawyer_unknown.xml")
+    for pairs in (0, 65, "per_env"):
+        with pytest.raises(ValueError, match="ccd_pairs_per_env"):
+            mwjax.PhysicsConfig(ccd_pairs_per_env=pairs)
+    with pytest.raises(ValueError, match="no recorded contact pairs"):
+        ccd_pairs("sawyer_unknown.xml")
 
 
 def test_constraint_buffers_hold_twice_what_mujoco_c_reaches_in_each_scene(env):
@@ -151,6 +157,29 @@ def test_constraint_buffers_hold_twice_what_mujoco_c_reaches_in_each_scene(env):
     per_scene = env.replace(physics=mwjax.PhysicsConfig(constraints_per_env="per_scene"))
     for group in per_scene.physics.groups:
         assert per_scene.physics.constraint_rows(group.scene) == constraint_rows(group.scene)
+
+
+def test_convex_collider_slots_hold_an_expert_press_and_a_shortfall_is_reported():
+    table = json.loads((MODELS_DIR / "constraint_rows.json").read_text())["scenes"]
+    busiest = max(table, key=lambda scene: table[scene]["max_ccd_pairs"])
+    task = "button-press-topdown-v3"
+    assert TASKS_REGISTRY[task].scene == busiest
+    assert ccd_pairs(busiest) == 2 * table[busiest]["max_ccd_pairs"]
+    assert {ccd_pairs(scene) for scene in table} <= set(range(4, 65))
+    expert = jax.vmap(policies.expert(task))
+    for slots, overflows in (("per_scene", False), (1, True)):
+        env = mwjax.make(
+            [task], envs_per_task=2, seed=0, physics=mwjax.PhysicsConfig(ccd_pairs_per_env=slots)
+        )
+        step = jax.jit(lambda state, env=env: env.step(state, jnp.clip(expert(state.obs), -1.0, 1.0)))
+        state = env.reset(jax.random.key(0))
+        for _ in range(80):  # the expert reaches the button and presses it down
+            state = step(state)
+        assert bool(state.info["success"].any())
+        flags = np.asarray(env.physics.overflow(state.physics))
+        assert bool((flags & int(OverflowType.CCD)).any()) == overflows, (slots, flags)
+        if not overflows:
+            assert not flags.any()
 
 
 @pytest.mark.parametrize("scene", scene_names())

@@ -102,6 +102,17 @@ def constraint_rows(scene: str) -> int:
     return max(128, 32 * math.ceil(2 * table[scene]["max_rows"] / 32))
 
 
+def ccd_pairs(scene: str) -> int:
+    """Slots per env of `scene` for Warp's convex collider (GJK/EPA): twice the most geom pairs of
+    one pair of geom types that MuJoCo C had in contact at once and that Warp sends to that
+    collider, under the reference's experts and random actions (`constraint_rows.json`), at
+    least 4. Warp takes one slot per such pair and drops the pairs past the last slot."""
+    table = _recorded_constraint_rows()
+    if scene not in table:
+        raise ValueError(f"no recorded contact pairs for scene {scene!r}; set ccd_pairs_per_env")
+    return max(4, 2 * table[scene]["max_ccd_pairs"])
+
+
 @functools.cache
 def _recorded_constraint_rows() -> dict[str, dict]:
     return json.loads((MODELS_DIR / "constraint_rows.json").read_text())["scenes"]

@@ -303,12 +303,38 @@ def plot(result: dict, path: Path) -> None:
     ax.grid(alpha=0.3, which="both")
     ax.legend(fontsize=7)
     ax.set_title(
-        f"{result['device']}, {result['physics']} physics, commit {result['commit'][:8]}, "
+        f"{result['device']}, {result['physics']} physics, commit {result['commit'][:18]}, "
         f"{result['date'][:10]}",
         fontsize=9,
     )
     fig.tight_layout()
     fig.savefig(path, dpi=120)
+
+
+def merged(paths: list[str]) -> dict:
+    """Result files of one device (separate invocations, e.g. one batch size per device call) as
+    one result, to plot their curves together; rows of different commits get their own curve."""
+    results = [json.loads(Path(path).read_text()) for path in paths]
+    for key in ("device", "physics"):
+        values = {r[key] for r in results}
+        if len(values) > 1:
+            raise ValueError(f"--plot-from files differ in {key}: {sorted(values)}")
+    commits = list(dict.fromkeys(r["commit"][:7] for r in results))
+
+    def rows(result: dict, key: str) -> list[dict]:
+        if len(commits) == 1:
+            return result.get(key, [])
+        label = f" ({result['commit'][:7]})"
+        return [{**row, "benchmark": row["benchmark"] + label} for row in result.get(key, [])]
+
+    return {
+        **results[0],
+        "commit": ", ".join(commits),
+        "date": max(r["date"] for r in results),
+        **{
+            key: [row for r in results for row in rows(r, key)] for key in ("results", "adapter", "reference")
+        },
+    }
 
 
 def main() -> None:
@@ -351,7 +377,20 @@ def main() -> None:
     parser.add_argument(
         "--profile-compile", action="store_true", help="cProfile each step's compile after lowering"
     )
+    parser.add_argument(
+        "--plot-from",
+        nargs="+",
+        metavar="JSON",
+        default=None,
+        help="measure nothing: plot these result files (one device) to --out's PNG",
+    )
     args = parser.parse_args()
+    if args.plot_from:
+        if not args.out:
+            parser.error("--plot-from needs --out")
+        plot(merged(args.plot_from), Path(args.out).with_suffix(".png"))
+        print(f"plot -> {Path(args.out).with_suffix('.png')}")
+        return
     if args.jax_cache:
         jax.config.update("jax_compilation_cache_dir", args.jax_cache)
         # Cache every program: the defaults skip the ones that compile in under a second.

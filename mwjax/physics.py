@@ -41,9 +41,9 @@ class PhysicsConfig:
     constraints_per_env: int | Literal["per_scene"] = 512
     # Slots of scratch for Warp's convex collider (GJK/EPA), pooled over a scene's batch for each
     # pair of geom types: one per geom pair that it finds in contact (`naccdmax`); a pair past
-    # the last slot is dropped (`Physics.overflow` says so). Warp allocates ~5.5 KB per slot in
+    # the last slot is dropped (`Physics.overflow` says so). Warp allocates ~7.5 KB per slot in
     # every collision call, outside JAX's memory. MJX's default is one slot per contact (64 per
-    # env, ~350 KB per env); "per_scene" gives each scene twice the most such pairs MuJoCo C had
+    # env, ~480 KB per env); "per_scene" gives each scene twice the most such pairs MuJoCo C had
     # in contact at once (`mwjax.models.ccd_pairs`): 4 to 32.
     ccd_pairs_per_env: int | Literal["per_scene"] = "per_scene"
     # Who captures the CUDA graphs of a Warp step: None is MJX's choice ("warp" on GPU: Warp
@@ -158,10 +158,10 @@ class Physics:
         return jax.vmap(functools.partial(mjx.kinematics, model))(data)
 
     def overflow(self, datas: tuple[mjx.Data, ...]) -> jax.Array:
-        """Per env (rows in batch order), the buffers that overflowed since its data was made, as
-        Warp's `OverflowType` bits (contacts, constraint rows, CCD slots); 0 when none did. Warp
-        drops what does not fit, so a nonzero value means that env's physics left the reference's.
-        MJX has no public accessor for Warp's flags, hence the private field."""
+        """Per env (rows in batch order), the `OverflowType` flags Warp raised since its data was
+        made: buffers that overflowed (contacts, constraint rows, CCD slots: Warp drops what does
+        not fit, so that env's physics left the reference's) and limits reached (solver
+        iterations, EPA horizon). MJX has no public accessor for them, hence the private field."""
         return jnp.concatenate([data._impl.overflow for data in datas])
 
     def kinematics(self, datas: tuple[mjx.Data, ...]) -> tuple[mjx.Data, ...]:

@@ -159,6 +159,10 @@ def test_constraint_buffers_hold_twice_what_mujoco_c_reaches_in_each_scene(env):
         assert per_scene.physics.constraint_rows(group.scene) == constraint_rows(group.scene)
 
 
+# Warp's flags for buffers whose excess it drops (the others are solver and EPA limits).
+DROPPED = OverflowType.CCD | OverflowType.NEFC | OverflowType.BROADPHASE | OverflowType.NARROWPHASE
+
+
 def test_convex_collider_slots_hold_an_expert_press_and_a_shortfall_is_reported():
     table = json.loads((MODELS_DIR / "constraint_rows.json").read_text())["scenes"]
     busiest = max(table, key=lambda scene: table[scene]["max_ccd_pairs"])
@@ -178,8 +182,7 @@ def test_convex_collider_slots_hold_an_expert_press_and_a_shortfall_is_reported(
         assert bool(state.info["success"].any())
         flags = np.asarray(env.physics.overflow(state.physics))
         assert bool((flags & int(OverflowType.CCD)).any()) == overflows, (slots, flags)
-        if not overflows:
-            assert not flags.any()
+        assert not (flags & int(DROPPED & ~OverflowType.CCD)).any(), (slots, flags)
 
 
 @pytest.mark.parametrize("scene", scene_names())

@@ -352,6 +352,7 @@ def main() -> None:
     parser.add_argument(
         "--ccd-pairs", type=rows_arg, default=None, help="ccd_pairs_per_env: slots or per_scene"
     )
+    parser.add_argument("--substep-loop", action="store_true", help="PhysicsConfig(unroll_substeps=False)")
     parser.add_argument(
         "--graph-mode",
         default=None,
@@ -403,7 +404,10 @@ def main() -> None:
         "ccd_pairs_per_env": args.ccd_pairs,
     }
     physics = dataclasses.replace(
-        physics, graph_mode=args.graph_mode, **{k: v for k, v in buffers.items() if v is not None}
+        physics,
+        graph_mode=args.graph_mode,
+        unroll_substeps=not args.substep_loop,
+        **{k: v for k, v in buffers.items() if v is not None},
     )
 
     device = jax.devices()[0]
@@ -469,6 +473,7 @@ def main() -> None:
         "date": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
         "physics": args.physics,
         "graph_mode": args.graph_mode,
+        "unroll_substeps": physics.unroll_substeps,
         "contacts_per_env": physics.contacts_per_env,
         "constraints_per_env": physics.constraints_per_env,
         "ccd_pairs_per_env": physics.ccd_pairs_per_env,

@@ -54,6 +54,9 @@ class PhysicsConfig:
     # "box_box": Warp's port of MuJoCo C's `mjc_BoxBox` (C's collider, see `warp_model`);
     # "convex": Warp's general convex collider (GJK/EPA), MJX-Warp's own default.
     box_box_collider: str = "box_box"
+    # False runs each scene's substeps as a device loop, so the step program holds one traced
+    # physics call per scene instead of `substeps` (shorter lowering, smaller program).
+    unroll_substeps: bool = True
 
     def __post_init__(self) -> None:
         rows = self.constraints_per_env
@@ -153,8 +156,11 @@ class Physics:
         # Unrolled: a device-side loop would cost a host round trip per substep on GPU. Not one
         # nested jit reused for the five substeps either: that halves lowering, but with it MT50
         # at 409,600 envs ran out of GPU memory inside Warp, which it does not without (README).
-        for _ in range(self.config.substeps):
-            data = step(data)
+        if self.config.unroll_substeps:
+            for _ in range(self.config.substeps):
+                data = step(data)
+        else:
+            data = jax.lax.fori_loop(0, self.config.substeps, lambda _, d: step(d), data)
         return jax.vmap(functools.partial(mjx.kinematics, model))(data)
 
     def overflow(self, datas: tuple[mjx.Data, ...]) -> jax.Array:

@@ -153,9 +153,10 @@ class Physics:
         # of its NumPy fields (meshes included) while tracing.
         model = self.groups[g].device_model
         step = jax.vmap(functools.partial(mjx.step, model))
-        # Unrolled: a device-side loop would cost a host round trip per substep on GPU. Not one
-        # nested jit reused for the five substeps either: that halves lowering, but with it MT50
-        # at 409,600 envs ran out of GPU memory inside Warp, which it does not without (README).
+        # Unrolled by default: the published GPU figures are for it. The loop (`unroll_substeps`)
+        # traces one call per scene and compiles much faster on the CPU, but MT50 has not run
+        # with it on a GPU yet. Not one nested jit called for the five substeps: with that, MT50
+        # at 409,600 envs ran out of GPU memory inside Warp (README).
         if self.config.unroll_substeps:
             for _ in range(self.config.substeps):
                 data = step(data)

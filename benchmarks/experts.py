@@ -21,13 +21,12 @@ from pathlib import Path
 
 import jax
 import numpy as np
-from throughput import commit, rows_arg
+from throughput import commit, rows_arg, tasks_arg
 
 import mwjax
 from mwjax import policies
 from mwjax.benchmarks import mt1_goal_variants, task_names
 from mwjax.evaluation import evaluator
-from mwjax.tasks import TASKS
 
 RESULTS = Path(__file__).parent / "results"
 TOLERANCE = 0.04  # the bar: every task within 0.04 below the reference
@@ -69,8 +68,7 @@ def main() -> None:
         "box_box_collider": args.box_box,
     }
     physics = mwjax.PhysicsConfig(**{k: v for k, v in buffers.items() if v is not None})
-    # A set name, or task names (one task alone runs as a one-task set).
-    tasks = args.set.split(",") if "," in args.set or args.set in TASKS else args.set
+    tasks = tasks_arg(args.set)
     variants = None
     if args.goals == "mt1":
         variants = mt1_goal_variants(task_names(tasks), args.seed)

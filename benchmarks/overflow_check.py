@@ -18,14 +18,13 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 from mujoco.mjx.third_party.mujoco_warp import OverflowType
-from throughput import commit
+from throughput import commit, tasks_arg
 
 import mwjax
 from mwjax import policies
+from mwjax.physics import DROPPED
 
 RESULTS = Path(__file__).parent / "results"
-# Buffers whose excess Warp drops; the other flags are limits reached (solver, EPA horizon).
-DROPPED = OverflowType.CCD | OverflowType.NEFC | OverflowType.BROADPHASE | OverflowType.NARROWPHASE
 
 
 def flag_names(bits: int) -> str:
@@ -41,8 +40,7 @@ def main() -> None:
     parser.add_argument("--policy", choices=["expert", "random"], default="expert")
     parser.add_argument("--seed", type=int, default=0)
     args = parser.parse_args()
-    tasks = args.set.split(",") if "," in args.set else args.set
-    env = mwjax.make(tasks, envs_per_task=args.envs_per_task, seed=args.seed)
+    env = mwjax.make(tasks_arg(args.set), envs_per_task=args.envs_per_task, seed=args.seed)
     expert = policies.expert_policy(env)
 
     def body(state: mwjax.State, key: jax.Array) -> tuple[mwjax.State, tuple[jax.Array, jax.Array]]:
@@ -62,11 +60,12 @@ def main() -> None:
     device = jax.devices()[0]
     device_name = getattr(device, "device_kind", str(device)).replace(" ", "_")
     date = datetime.date.today().isoformat()
+    revision = commit()[:7]
     lines = [
         f"# Warp overflow flags, {args.set}, {args.policy} actions",
         "",
         f"`benchmarks/overflow_check.py --set {args.set} --envs-per-task {args.envs_per_task} "
-        f"--steps {args.steps} --policy {args.policy} --seed {args.seed}`, commit {commit()[:7]}, "
+        f"--steps {args.steps} --policy {args.policy} --seed {args.seed}`, commit {revision}, "
         f"{device_name}, {date}. Default physics (`PhysicsConfig()`); flags raised in any env of "
         "the task at any step; success: at any step, in any env of the task.",
         "",
@@ -81,10 +80,7 @@ def main() -> None:
         dropped_tasks += [task] if dropped else []
         lines.append(f"| {task} | {bool(success[rows].any())} | {flag_names(bits)} | {dropped} |")
     lines += ["", f"Tasks with a dropped contact, row or CCD pair: {', '.join(dropped_tasks) or 'none'}."]
-    out = (
-        RESULTS
-        / f"overflow-{args.set.replace(',', '+')}-{args.policy}-{commit()[:7]}-{device_name}-{date}.md"
-    )
+    out = RESULTS / f"overflow-{args.set.replace(',', '+')}-{args.policy}-{revision}-{device_name}-{date}.md"
     out.write_text("\n".join(lines) + "\n")
     print("\n".join(lines))
     print(f"-> {out}")

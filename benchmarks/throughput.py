@@ -43,6 +43,7 @@ import numpy as np
 
 import mwjax
 from mwjax.benchmarks import task_names
+from mwjax.tasks import TASKS
 from mwjax.wrappers.gymnasium import make_vector
 
 RESULTS = Path(__file__).parent / "results"
@@ -64,6 +65,12 @@ def gpu_memory_used_mib() -> float | None:
 def rows_arg(text: str) -> int | str:
     """A `--constraints` or `--ccd-pairs` value: a count per env, or "per_scene"."""
     return text if text == "per_scene" else int(text)
+
+
+def tasks_arg(text: str) -> str | list[str]:
+    """A `--set` value as `mwjax.make` takes it: a set name, or task names separated by commas
+    (one task alone runs as a one-task set)."""
+    return text.split(",") if "," in text or text in TASKS else text
 
 
 def commit() -> str:

@@ -20,8 +20,13 @@ import jax.numpy as jnp
 import mujoco
 import warp
 from mujoco import mjx
+from mujoco.mjx.third_party.mujoco_warp import OverflowType
 
 from mwjax.models import ccd_pairs, constraint_rows, load_scene
+
+# The `Physics.overflow` flags of buffers whose excess Warp drops (convex-collider pairs,
+# constraint rows, contacts); the other flags are limits reached (solver, EPA horizon).
+DROPPED = OverflowType.CCD | OverflowType.NEFC | OverflowType.BROADPHASE | OverflowType.NARROWPHASE
 
 
 @dataclasses.dataclass(frozen=True)
@@ -166,9 +171,9 @@ class Physics:
 
     def overflow(self, datas: tuple[mjx.Data, ...]) -> jax.Array:
         """Per env (rows in batch order), the `OverflowType` flags Warp raised since its data was
-        made: buffers that overflowed (contacts, constraint rows, CCD slots: Warp drops what does
-        not fit, so that env's physics left the reference's) and limits reached (solver
-        iterations, EPA horizon). MJX has no public accessor for them, hence the private field."""
+        made: buffers that overflowed (`DROPPED`: Warp drops what does not fit, so that env's
+        physics left the reference's) and limits reached (solver iterations, EPA horizon). MJX
+        has no public accessor for them, hence the private field."""
         return jnp.concatenate([data._impl.overflow for data in datas])
 
     def kinematics(self, datas: tuple[mjx.Data, ...]) -> tuple[mjx.Data, ...]:

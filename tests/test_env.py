@@ -15,6 +15,7 @@ import mwjax
 from mwjax import benchmarks, policies
 from mwjax.benchmarks import MT10
 from mwjax.models import MODELS_DIR, ccd_pairs, constraint_rows, load_scene, scene_names
+from mwjax.physics import DROPPED
 from mwjax.tasks import TASKS as TASKS_REGISTRY
 
 TASKS = ["reach-v3", "drawer-open-v3", "drawer-close-v3"]  # two share a scene
@@ -167,10 +168,6 @@ def test_constraint_buffers_hold_twice_what_mujoco_c_reaches_in_each_scene(env):
     per_scene = env.replace(physics=mwjax.PhysicsConfig(constraints_per_env="per_scene"))
     for group in per_scene.physics.groups:
         assert per_scene.physics.constraint_rows(group.scene) == constraint_rows(group.scene)
-
-
-# Warp's flags for buffers whose excess it drops (the others are solver and EPA limits).
-DROPPED = OverflowType.CCD | OverflowType.NEFC | OverflowType.BROADPHASE | OverflowType.NARROWPHASE
 
 
 def test_convex_collider_slots_hold_an_expert_press_and_a_shortfall_is_reported():

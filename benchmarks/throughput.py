@@ -23,6 +23,7 @@ On a GPU set XLA_PYTHON_CLIENT_MEM_FRACTION (~0.45) so JAX leaves Warp room.
 from __future__ import annotations
 
 import argparse
+import collections
 import cProfile
 import dataclasses
 import datetime
@@ -31,6 +32,7 @@ import json
 import os
 import platform
 import pstats
+import re
 import shlex
 import subprocess
 import sys
@@ -93,6 +95,8 @@ def measure(
     physics_only_mode: bool = False,
     warmup: bool = True,
     compile_profile: Path | None = None,
+    lowering_profile: Path | None = None,
+    hlo_stats: bool = False,
 ) -> dict:
     n_tasks = len(task_names(benchmark))
     if total % n_tasks:
@@ -128,9 +132,19 @@ def measure(
     state = jax.block_until_ready(reset(jax.random.key(0)))
     reset_compile_s = time.perf_counter() - t0
     profiler = cProfile.Profile() if compile_profile else None
+    lowering_profiler = cProfile.Profile() if lowering_profile else None
     t0 = time.perf_counter()
+    if lowering_profiler:  # the lowering figure then includes the profiler's own cost
+        lowering_profiler.enable()
     lowered = run.lower(state, jax.random.key(1))
     lower_s = time.perf_counter() - t0
+    if lowering_profiler:
+        lowering_profiler.disable()
+        write_profile(
+            lowering_profiler,
+            lowering_profile,
+            f"{benchmark}, {env.num_envs} envs: lowering {lower_s:.1f} s under cProfile",
+        )
     if profiler:  # not the lowering: that is Python tracing, which a profiler slows down
         profiler.enable()
     compiled = lowered.compile()
@@ -142,6 +156,7 @@ def measure(
             compile_profile,
             f"{benchmark}, {env.num_envs} envs: lower {lower_s:.1f} s, lower + compile {compile_s:.1f} s",
         )
+    step_hlo = optimized_hlo_stats(compiled.as_text()) if hlo_stats else None
     first_rollout_s = None
     if warmup:  # Warp compiles or loads its kernels on the first call
         t0 = time.perf_counter()
@@ -177,6 +192,8 @@ def measure(
         "reset_compile_s": reset_compile_s,
         "step_compile_s": compile_s,  # tracing and lowering included
         "step_lower_s": lower_s,
+        "step_lowering_profiled": lowering_profile is not None,
+        "step_hlo": step_hlo,
         "first_rollout_s": first_rollout_s,
         "state_bytes_per_env": state_bytes / env.num_envs,
         "jax_peak_bytes_in_use": stats.get("peak_bytes_in_use"),
@@ -184,6 +201,27 @@ def measure(
         "success_steps_last_rollout": int(successes),
         "warp_modules_compiled_in_timed_rollouts": compiled_in_timing,
     }
+
+
+def optimized_hlo_stats(text: str) -> dict:
+    """What a compiled program is made of: instructions per opcode over all its computations
+    (fusion bodies included), and how many computations, kernels and custom calls it has."""
+    opcodes: collections.Counter[str] = collections.Counter()
+    computations = 0
+    for line in text.splitlines():
+        if line.endswith("{") and not line.startswith(" "):
+            computations += 1
+        elif match := _HLO_INSTRUCTION.match(line):
+            opcodes[match.group(1)] += 1
+    return {
+        "text_bytes": len(text),
+        "computations": computations,
+        "instructions": sum(opcodes.values()),
+        "top_opcodes": dict(opcodes.most_common(25)),
+    }
+
+
+_HLO_INSTRUCTION = re.compile(r"\s+(?:ROOT )?%?[\w.\-]+ = .*? ([a-z][a-z0-9\-]*)\(")
 
 
 def write_profile(profiler: cProfile.Profile, path: Path, title: str) -> None:
@@ -195,7 +233,7 @@ def write_profile(profiler: cProfile.Profile, path: Path, title: str) -> None:
     stats.sort_stats("tottime").print_stats(30)
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(text.getvalue())
-    print(f"compile profile -> {path}", flush=True)
+    print(f"profile -> {path}", flush=True)
 
 
 def warp_kernel_modules() -> int:
@@ -386,6 +424,14 @@ def main() -> None:
         "--profile-compile", action="store_true", help="cProfile each step's compile after lowering"
     )
     parser.add_argument(
+        "--profile-lowering",
+        action="store_true",
+        help="cProfile each step's lowering (Python tracing; the lowering figure then includes the profiler)",
+    )
+    parser.add_argument(
+        "--hlo-stats", action="store_true", help="count the compiled step program's instructions per opcode"
+    )
+    parser.add_argument(
         "--plot-from",
         nargs="+",
         metavar="JSON",
@@ -431,6 +477,11 @@ def main() -> None:
                 if args.profile_compile
                 else None
             )
+            lowering_profile = (
+                out.with_name(f"{out.stem}-lowering-{benchmark.replace(':', '-')}-{total}.txt")
+                if args.profile_lowering
+                else None
+            )
             row = measure(
                 benchmark,
                 total,
@@ -440,6 +491,8 @@ def main() -> None:
                 args.physics_only,
                 not args.no_warmup,
                 profile,
+                lowering_profile,
+                args.hlo_stats,
             )
             rows.append(row)
             print(

@@ -60,7 +60,8 @@ class PhysicsConfig:
     # "convex": Warp's general convex collider (GJK/EPA), MJX-Warp's own default.
     box_box_collider: str = "box_box"
     # False runs each scene's substeps as a device loop, so the step program holds one traced
-    # physics call per scene instead of `substeps` (shorter lowering, smaller program).
+    # physics call per scene instead of `substeps`: a shorter lowering and a faster compile on
+    # the CPU (tests), none on the GPU.
     unroll_substeps: bool = True
 
     def __post_init__(self) -> None:
@@ -158,10 +159,11 @@ class Physics:
         # of its NumPy fields (meshes included) while tracing.
         model = self.groups[g].device_model
         step = jax.vmap(functools.partial(mjx.step, model))
-        # Unrolled by default: the published GPU figures are for it. The loop (`unroll_substeps`)
-        # traces one call per scene and compiles much faster on the CPU, but MT50 has not run
-        # with it on a GPU yet. Not one nested jit called for the five substeps: with that, MT50
-        # at 409,600 envs ran out of GPU memory inside Warp (README).
+        # Unrolled by default. The loop (`unroll_substeps=False`) halves MT50's warm compile on
+        # the CPU but not on the H200, where it loaded from JAX's cache slower (74 s against 62
+        # s) and stepped slower (1.04-1.05M env steps/s against 1.08-1.11M; README, Compile).
+        # Not one nested jit called for the five substeps: with that, MT50 at 409,600 envs ran
+        # out of GPU memory inside Warp (README).
         if self.config.unroll_substeps:
             for _ in range(self.config.substeps):
                 data = step(data)

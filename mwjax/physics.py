@@ -160,8 +160,8 @@ class Physics:
         model = self.groups[g].device_model
         step = jax.vmap(functools.partial(mjx.step, model))
         # Unrolled by default. The loop (`unroll_substeps=False`) halves MT50's warm compile on
-        # the CPU but not on the H200, where it loaded from JAX's cache slower (74 s against 62
-        # s) and stepped slower (1.04-1.05M env steps/s against 1.08-1.11M; README, Compile).
+        # the CPU but not on the H200: 74 s there, and 1.04-1.05M env steps/s against 1.08-1.11M
+        # unrolled (README, Compile).
         # Not one nested jit called for the five substeps: with that, MT50 at 409,600 envs ran
         # out of GPU memory inside Warp (README).
         if self.config.unroll_substeps:

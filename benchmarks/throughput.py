@@ -398,6 +398,7 @@ def main() -> None:
         "--ccd-pairs", type=rows_arg, default=None, help="ccd_pairs_per_env: slots or per_scene"
     )
     parser.add_argument("--substep-loop", action="store_true", help="PhysicsConfig(unroll_substeps=False)")
+    parser.add_argument("--share-traces", action="store_true", help="PhysicsConfig(share_traces=True)")
     parser.add_argument(
         "--graph-mode",
         default=None,
@@ -460,6 +461,7 @@ def main() -> None:
         physics,
         graph_mode=args.graph_mode,
         unroll_substeps=not args.substep_loop,
+        share_traces=args.share_traces,
         **{k: v for k, v in buffers.items() if v is not None},
     )
 
@@ -534,6 +536,7 @@ def main() -> None:
         "physics": args.physics,
         "graph_mode": args.graph_mode,
         "unroll_substeps": physics.unroll_substeps,
+        "share_traces": physics.share_traces,
         "contacts_per_env": physics.contacts_per_env,
         "constraints_per_env": physics.constraints_per_env,
         "ccd_pairs_per_env": physics.ccd_pairs_per_env,

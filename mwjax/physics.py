@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import Literal
 
 import jax
@@ -63,6 +63,12 @@ class PhysicsConfig:
     # physics call per scene instead of `substeps`: a shorter lowering and a faster compile on
     # the CPU (tests), none on the GPU.
     unroll_substeps: bool = True
+    # True traces each scene's `mjx.step` and `mjx.kinematics` once (a jitted function per scene,
+    # called at every site: substeps, the autoreset branch, resets that step), so the step
+    # program is traced and lowered with 72 physics calls for MT50 instead of 264. The calls
+    # then share Warp call ids, and Warp keys its captured CUDA graphs by call id and buffers:
+    # with 64 CCD slots per env this ran out of GPU memory inside Warp (README, Compile).
+    share_traces: bool = False
 
     def __post_init__(self) -> None:
         rows = self.constraints_per_env
@@ -120,6 +126,13 @@ class Physics:
             )
             start += size
         self.groups: tuple[SceneGroup, ...] = tuple(groups)
+        # The model is closed over, not a vmap argument: as an argument, every call hashes all
+        # of its NumPy fields (meshes included) while tracing.
+        share = jax.jit if config.share_traces else _as_is
+        self._substep = tuple(share(jax.vmap(functools.partial(mjx.step, g.device_model))) for g in groups)
+        self._kinematics = tuple(
+            share(jax.vmap(functools.partial(mjx.kinematics, g.device_model))) for g in groups
+        )
 
     def make_data(self) -> tuple[mjx.Data, ...]:
         """Fresh batched data (the scene's qpos0), one per group."""
@@ -155,21 +168,16 @@ class Physics:
 
     def step_group(self, g: int, data: mjx.Data) -> mjx.Data:
         """`step` for group `g` alone."""
-        # The model is closed over, not a vmap argument: as an argument, every call hashes all
-        # of its NumPy fields (meshes included) while tracing.
-        model = self.groups[g].device_model
-        step = jax.vmap(functools.partial(mjx.step, model))
+        step = self._substep[g]
         # Unrolled by default. The loop (`unroll_substeps=False`) halves MT50's warm compile on
         # the CPU but not on the H200: 74 s there, and 1.04-1.05M env steps/s against 1.08-1.11M
         # unrolled (README, Compile).
-        # Not one nested jit called for the five substeps: with that, MT50 at 409,600 envs ran
-        # out of GPU memory inside Warp (README).
         if self.config.unroll_substeps:
             for _ in range(self.config.substeps):
                 data = step(data)
         else:
             data = jax.lax.fori_loop(0, self.config.substeps, lambda _, d: step(d), data)
-        return jax.vmap(functools.partial(mjx.kinematics, model))(data)
+        return self._kinematics[g](data)
 
     def overflow(self, datas: tuple[mjx.Data, ...]) -> jax.Array:
         """Per env (rows in batch order), the `OverflowType` flags Warp raised since its data was
@@ -179,10 +187,7 @@ class Physics:
         return jnp.concatenate([data._impl.overflow for data in datas])
 
     def kinematics(self, datas: tuple[mjx.Data, ...]) -> tuple[mjx.Data, ...]:
-        return tuple(
-            jax.vmap(functools.partial(mjx.kinematics, group.device_model))(data)
-            for group, data in zip(self.groups, datas, strict=True)
-        )
+        return tuple(kinematics(data) for kinematics, data in zip(self._kinematics, datas, strict=True))
 
 
 def warp_model(scene: str, mocap_bodies: tuple[str, ...], config: PhysicsConfig) -> mujoco.MjModel:
@@ -196,6 +201,10 @@ def warp_model(scene: str, mocap_bodies: tuple[str, ...], config: PhysicsConfig)
     if config.box_box_collider == "box_box":
         model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_NATIVECCD
     return model
+
+
+def _as_is(fn: Callable) -> Callable:
+    return fn
 
 
 def _graph_mode(name: str | None) -> warp.JaxCallableGraphMode | None:

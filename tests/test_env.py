@@ -99,9 +99,14 @@ def test_same_seed_same_rollout(env, compiled, episode):
         np.testing.assert_array_equal(a.reward, b.reward)
 
 
-def test_substeps_as_a_device_loop_step_exactly_as_unrolled(env, episode):
-    looped = env.replace(physics=mwjax.PhysicsConfig(unroll_substeps=False))
-    again = rollout(looped, (jax.jit(looped.reset), jax.jit(looped.step)), jax.random.key(7), HORIZON + 1)
+@pytest.mark.parametrize(
+    "physics",
+    [mwjax.PhysicsConfig(unroll_substeps=False), mwjax.PhysicsConfig(share_traces=True)],
+    ids=["substep_loop", "shared_traces"],
+)
+def test_compile_layouts_step_exactly_as_default(env, episode, physics):
+    other = env.replace(physics=physics)
+    again = rollout(other, (jax.jit(other.reset), jax.jit(other.step)), jax.random.key(7), HORIZON + 1)
     for a, b in zip(episode, again, strict=True):
         np.testing.assert_array_equal(a.obs, b.obs)
         np.testing.assert_array_equal(a.reward, b.reward)

@@ -61,7 +61,7 @@ class PhysicsConfig:
     box_box_collider: str = "box_box"
     # False runs each scene's substeps as a device loop, so the step program holds one traced
     # physics call per scene instead of `substeps`: a shorter lowering and a faster compile on
-    # the CPU (tests), none on the GPU.
+    # the CPU, none on the GPU.
     unroll_substeps: bool = True
     # True traces each scene's `mjx.step` and `mjx.kinematics` once (a jitted function per scene,
     # called at every site: substeps, the autoreset branch, resets that step), so the step

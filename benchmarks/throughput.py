@@ -15,7 +15,9 @@ sizes. `--plot` saves the scaling curve (env steps/s against batch size) as a PN
 `--jax-cache DIR` turns on JAX's persistent compilation cache: a second process with the same
 sets and batch sizes then loads the compiled programs instead of compiling them (the "warm cache"
 compile time; tracing and lowering still run). `--profile-compile` writes a cProfile of each
-step's compile after lowering (XLA, or the cache load) beside the JSON.
+step's compile after lowering (XLA, or the cache load) beside the JSON, `--profile-lowering` one
+of the lowering (slowed by the profiler), and `--hlo-stats` counts the compiled step's
+instructions per opcode into the JSON.
 
 On a GPU set XLA_PYTHON_CLIENT_MEM_FRACTION (~0.45) so JAX leaves Warp room.
 """

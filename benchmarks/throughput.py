@@ -226,6 +226,11 @@ def optimized_hlo_stats(text: str) -> dict:
 _HLO_INSTRUCTION = re.compile(r"\s+(?:ROOT )?%?[\w.\-]+ = .*? ([a-z][a-z0-9\-]*)\(")
 
 
+def profile_path(out: Path, kind: str, benchmark: str, total: int) -> Path:
+    """Where a profile of one set and batch goes: beside the result JSON `out`."""
+    return out.with_name(f"{out.stem}-{kind}-{benchmark.replace(':', '-')}-{total}.txt")
+
+
 def write_profile(profiler: cProfile.Profile, path: Path, title: str) -> None:
     """The profile's heaviest calls, by cumulative and by own time, as text."""
     text = io.StringIO()
@@ -476,15 +481,9 @@ def main() -> None:
         n_tasks = len(task_names(benchmark))
         for total in args.batch:
             total = total - total % n_tasks
-            profile = (
-                out.with_name(f"{out.stem}-compile-{benchmark.replace(':', '-')}-{total}.txt")
-                if args.profile_compile
-                else None
-            )
+            compile_profile = profile_path(out, "compile", benchmark, total) if args.profile_compile else None
             lowering_profile = (
-                out.with_name(f"{out.stem}-lowering-{benchmark.replace(':', '-')}-{total}.txt")
-                if args.profile_lowering
-                else None
+                profile_path(out, "lowering", benchmark, total) if args.profile_lowering else None
             )
             row = measure(
                 benchmark,
@@ -494,7 +493,7 @@ def main() -> None:
                 physics,
                 args.physics_only,
                 not args.no_warmup,
-                profile,
+                compile_profile,
                 lowering_profile,
                 args.hlo_stats,
             )

@@ -96,10 +96,8 @@ def constraint_rows(scene: str) -> int:
     under the reference's experts and under random actions (`constraint_rows.json`, recorded by
     `tools/reference_constraint_rows.py`), in multiples of 32, at least 128. Warp launches much
     of its constraint work over every allocated row, used or not, and drops rows that overflow."""
-    table = _recorded_constraint_rows()
-    if scene not in table:
-        raise ValueError(f"no recorded constraint rows for scene {scene!r}; set constraints_per_env")
-    return max(128, 32 * math.ceil(2 * table[scene]["max_rows"] / 32))
+    recorded = _recorded(scene, "constraint rows", "constraints_per_env")
+    return max(128, 32 * math.ceil(2 * recorded["max_rows"] / 32))
 
 
 def ccd_pairs(scene: str) -> int:
@@ -107,10 +105,15 @@ def ccd_pairs(scene: str) -> int:
     one pair of geom types that MuJoCo C had in contact at once and that Warp sends to that
     collider, under the reference's experts and random actions (`constraint_rows.json`), at
     least 4. Warp takes one slot per such pair and drops the pairs past the last slot."""
+    return max(4, 2 * _recorded(scene, "contact pairs", "ccd_pairs_per_env")["max_ccd_pairs"])
+
+
+def _recorded(scene: str, what: str, setting: str) -> dict:
+    """The scene's entry in `constraint_rows.json`; a scene without one needs `setting` set."""
     table = _recorded_constraint_rows()
     if scene not in table:
-        raise ValueError(f"no recorded contact pairs for scene {scene!r}; set ccd_pairs_per_env")
-    return max(4, 2 * table[scene]["max_ccd_pairs"])
+        raise ValueError(f"no recorded {what} for scene {scene!r}; set {setting}")
+    return table[scene]
 
 
 @functools.cache

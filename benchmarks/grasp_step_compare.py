@@ -57,7 +57,8 @@ def main() -> None:
             state.physics, action
         )
         device = variant.physics.groups[0].device_model
-        forward = jax.jit(jax.vmap(mjx.forward, in_axes=(None, 0)))(device, state.physics[0])
+        full = jax.jit(lambda s, e=variant: e.physics.data(0, s))(state.physics[0])
+        forward = jax.jit(jax.vmap(mjx.forward, in_axes=(None, 0)))(device, full)
         contacts = int(np.asarray(forward._impl.nacon).ravel()[0])
         velocity = np.asarray(moved[0].qvel[0])[BOX_VEL]
         print(

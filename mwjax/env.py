@@ -16,10 +16,9 @@ from typing import Any
 import jax
 import jax.numpy as jnp
 import numpy as np
-from mujoco import mjx
 
 from mwjax import benchmarks
-from mwjax.physics import Physics, PhysicsConfig
+from mwjax.physics import Physics, PhysicsConfig, PhysicsState
 from mwjax.tasks import get_task
 from mwjax.tasks.spec import Frame, Kinematics, Placement, StepInputs, TaskSpec
 
@@ -43,7 +42,7 @@ GOAL_SAMPLING = ("on_reset", "on_request")
 class State:
     """The whole batch. Per-env arrays have a leading axis of `env.num_envs`."""
 
-    physics: tuple[mjx.Data, ...]
+    physics: tuple[PhysicsState, ...]
     obs: Array
     reward: Array
     terminated: Array
@@ -420,7 +419,7 @@ class Env:
 
     def _reset_rows(
         self,
-        datas: tuple[mjx.Data, ...],
+        datas: tuple[PhysicsState, ...],
         rand_vecs: Array,
         goal_order: Array,
         goal_cursor: Array,
@@ -485,8 +484,8 @@ class Env:
         )
 
     def _reset_group(
-        self, g: int, data: mjx.Data, rand_vecs: Array, done: Array
-    ) -> tuple[mjx.Data, list[Placement]]:
+        self, g: int, data: PhysicsState, rand_vecs: Array, done: Array
+    ) -> tuple[PhysicsState, list[Placement]]:
         """Group `g`'s data with its `done` rows placed, and each member task's placements."""
         group = self.physics.groups[g]
         members = [r for r in self._rows if r.group == g]
@@ -526,8 +525,8 @@ class Env:
         ), placements
 
     def _placed_data(
-        self, data: mjx.Data, group: Any, parts: list[tuple[_TaskRows, Placement]], done: Array
-    ) -> mjx.Data:
+        self, data: PhysicsState, group: Any, parts: list[tuple[_TaskRows, Placement]], done: Array
+    ) -> PhysicsState:
         model = group.model
         mocap_pos, mocap_quat, qpos, qvel, warm, ctrl = [], [], [], [], [], []
         for rows, placement in parts:
@@ -618,7 +617,7 @@ class Env:
             raise ValueError("actions contain NaN or inf")
         return jnp.asarray(action, jnp.float32)
 
-    def _apply_action(self, datas: tuple[mjx.Data, ...], action: Array) -> tuple[mjx.Data, ...]:
+    def _apply_action(self, datas: tuple[PhysicsState, ...], action: Array) -> tuple[PhysicsState, ...]:
         """metaworld's set_xyz_action and gripper control: the hand's mocap moves by
         clip(a, -1, 1) / 100 within the task's mocap box; the fingers get [a3, -a3]."""
         delta = jnp.clip(action[:, :3], -1.0, 1.0) * _ACTION_SCALE
@@ -635,7 +634,7 @@ class Env:
             )
         return tuple(out)
 
-    def _kinematics(self, datas: tuple[mjx.Data, ...]) -> tuple[Kinematics, ...]:
+    def _kinematics(self, datas: tuple[PhysicsState, ...]) -> tuple[Kinematics, ...]:
         return tuple(Kinematics.of(d) for d in datas)
 
     def _observe_and_reward(

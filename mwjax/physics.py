@@ -3,9 +3,9 @@
 Today: one physics batch per scene. The env batch is laid out scene by scene (each scene's rows
 contiguous), every scene is its own `mujoco.MjModel` put on device once, and one env step runs one
 vmapped `mjx.step` chain per scene inside the same jitted call. Everything outside this module
-sees only `Physics.groups` (which rows belong to which compiled scene) and the step/kinematics
-functions, so another grouping (merged scenes with per-world model fields, say) can replace this
-without touching tasks, rewards or the env.
+sees only `Physics.groups` (which rows belong to which compiled scene), the step/kinematics
+functions and the `PhysicsState` they carry, so another grouping (merged scenes with per-world
+model fields, say) can replace this without touching tasks, rewards or the env.
 """
 
 from __future__ import annotations
@@ -90,6 +90,55 @@ class PhysicsConfig:
         return cls(iterations=10, ls_iterations=10)
 
 
+@jax.tree_util.register_dataclass
+@dataclasses.dataclass(frozen=True)
+class PhysicsState:
+    """What one scene batch carries from an env step to the next, rather than a whole `mjx.Data`.
+
+    MJX-Warp's `mjx.Data` has ~185 arrays, and a state that carries one per scene makes every
+    program that loops over it (a rollout's scan, autoreset's `cond`) pay in compile time for
+    each array squared: loading MT50's step from JAX's cache spent ~45 of its ~52 s printing the
+    loop's tuple shape once per element, to fingerprint it (README, Compile). The next step reads
+    only MuJoCo's integration state (`mjSTATE_INTEGRATION`) and recomputes everything else, so the
+    rest is rebuilt from `mjx.make_data` at each step. Batched: a leading axis of the scene's rows.
+    """
+
+    # mjSTATE_INTEGRATION: with the model, all that the next step reads.
+    time: jax.Array
+    qpos: jax.Array
+    qvel: jax.Array
+    act: jax.Array
+    history: jax.Array
+    qacc_warmstart: jax.Array
+    plugin_state: jax.Array
+    ctrl: jax.Array
+    qfrc_applied: jax.Array
+    xfrc_applied: jax.Array
+    eq_active: jax.Array
+    mocap_pos: jax.Array
+    mocap_quat: jax.Array
+    userdata: jax.Array
+    # The poses the tasks read (observations, rewards), as the last step or kinematics left them.
+    xpos: jax.Array
+    xquat: jax.Array
+    site_xpos: jax.Array
+    site_xmat: jax.Array
+    geom_xpos: jax.Array
+    geom_xmat: jax.Array
+    # Read by Warp's next step before it recomputes them (at float rounding, ~1e-11 in qpos):
+    # carried so that the batch steps bit for bit as a chain of whole `mjx.Data` does.
+    cvel: jax.Array
+    cdof_dot: jax.Array
+    # Warp's `OverflowType` flags raised since the data was made (`Physics.overflow`).
+    overflow: jax.Array
+
+    def replace(self, **changes: jax.Array) -> PhysicsState:
+        return dataclasses.replace(self, **changes)
+
+
+_FIELDS = tuple(f.name for f in dataclasses.fields(PhysicsState) if f.name != "overflow")
+
+
 @dataclasses.dataclass(frozen=True)
 class SceneGroup:
     """One physics batch: rows [start, start + size) of the env batch share `model`."""
@@ -103,7 +152,7 @@ class SceneGroup:
 
 
 class Physics:
-    """One MJX-Warp batch per scene; batched data is a tuple with one `mjx.Data` per group."""
+    """One MJX-Warp batch per scene; the batch's state is a tuple with one `PhysicsState` per group."""
 
     def __init__(self, scenes: Sequence[tuple[str, tuple[str, ...], int]], config: PhysicsConfig) -> None:
         self.config = config
@@ -134,20 +183,27 @@ class Physics:
             share(jax.vmap(functools.partial(mjx.kinematics, g.device_model))) for g in groups
         )
 
-    def make_data(self) -> tuple[mjx.Data, ...]:
-        """Fresh batched data (the scene's qpos0), one per group."""
-        datas = []
-        for group in self.groups:
-            make = functools.partial(
-                mjx.make_data,
-                group.model,
-                impl="warp",
-                naconmax=group.size * self.config.contacts_per_env,
-                naccdmax=group.size * self.ccd_pairs(group.scene),
-                njmax=self.constraint_rows(group.scene),
-            )
-            datas.append(jax.vmap(lambda _, make=make: make())(jnp.arange(group.size)))
-        return tuple(datas)
+    def make_data(self) -> tuple[PhysicsState, ...]:
+        """Fresh batched states (the scene's qpos0, poses not yet computed), one per group."""
+        return tuple(_carried(self._made(g)) for g in range(len(self.groups)))
+
+    def data(self, g: int, state: PhysicsState) -> mjx.Data:
+        """Group `g`'s full `mjx.Data` for `state`: what the next step reads, the rest as
+        `mjx.make_data` leaves it until a step or kinematics computes it."""
+        data = self._made(g).replace(**{name: getattr(state, name) for name in _FIELDS})
+        return data.replace(_impl=data._impl.replace(overflow=state.overflow))
+
+    def _made(self, g: int) -> mjx.Data:
+        group = self.groups[g]
+        make = functools.partial(
+            mjx.make_data,
+            group.model,
+            impl="warp",
+            naconmax=group.size * self.config.contacts_per_env,
+            naccdmax=group.size * self.ccd_pairs(group.scene),
+            njmax=self.constraint_rows(group.scene),
+        )
+        return jax.vmap(lambda _: make())(jnp.arange(group.size))
 
     def constraint_rows(self, scene: str) -> int:
         """Constraint rows allocated per env of `scene`."""
@@ -162,13 +218,14 @@ class Physics:
             return min(ccd_pairs(scene), self.config.contacts_per_env)
         return pairs
 
-    def step(self, datas: tuple[mjx.Data, ...]) -> tuple[mjx.Data, ...]:
+    def step(self, states: tuple[PhysicsState, ...]) -> tuple[PhysicsState, ...]:
         """`substeps` physics steps, then kinematics so positions describe the new state."""
-        return tuple(self.step_group(g, data) for g, data in enumerate(datas))
+        return tuple(self.step_group(g, state) for g, state in enumerate(states))
 
-    def step_group(self, g: int, data: mjx.Data) -> mjx.Data:
+    def step_group(self, g: int, state: PhysicsState) -> PhysicsState:
         """`step` for group `g` alone."""
         step = self._substep[g]
+        data = self.data(g, state)
         # Unrolled by default. The loop (`unroll_substeps=False`) halves MT50's warm compile on
         # the CPU but not on the H200: 74 s there, and 1.04-1.05M env steps/s against 1.08-1.11M
         # unrolled (README, Compile).
@@ -177,17 +234,17 @@ class Physics:
                 data = step(data)
         else:
             data = jax.lax.fori_loop(0, self.config.substeps, lambda _, d: step(d), data)
-        return self._kinematics[g](data)
+        return _carried(self._kinematics[g](data))
 
-    def overflow(self, datas: tuple[mjx.Data, ...]) -> jax.Array:
+    def overflow(self, states: tuple[PhysicsState, ...]) -> jax.Array:
         """Per env (rows in batch order), the `OverflowType` flags Warp raised since its data was
         made: buffers that overflowed (`DROPPED`: Warp drops what does not fit, so that env's
-        physics left the reference's) and limits reached (solver iterations, EPA horizon). MJX
-        has no public accessor for them, hence the private field."""
-        return jnp.concatenate([data._impl.overflow for data in datas])
+        physics left the reference's) and limits reached (solver iterations, EPA horizon)."""
+        return jnp.concatenate([state.overflow for state in states])
 
-    def kinematics(self, datas: tuple[mjx.Data, ...]) -> tuple[mjx.Data, ...]:
-        return tuple(kinematics(data) for kinematics, data in zip(self._kinematics, datas, strict=True))
+    def kinematics(self, states: tuple[PhysicsState, ...]) -> tuple[PhysicsState, ...]:
+        """The poses of `states` computed from their qpos (and mocap bodies)."""
+        return tuple(_carried(self._kinematics[g](self.data(g, state))) for g, state in enumerate(states))
 
 
 def warp_model(scene: str, mocap_bodies: tuple[str, ...], config: PhysicsConfig) -> mujoco.MjModel:
@@ -201,6 +258,11 @@ def warp_model(scene: str, mocap_bodies: tuple[str, ...], config: PhysicsConfig)
     if config.box_box_collider == "box_box":
         model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_NATIVECCD
     return model
+
+
+def _carried(data: mjx.Data) -> PhysicsState:
+    # MJX has no public accessor for Warp's overflow flags, hence the private field.
+    return PhysicsState(**{name: getattr(data, name) for name in _FIELDS}, overflow=data._impl.overflow)
 
 
 def _as_is(fn: Callable) -> Callable:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 import json
 
 import jax
@@ -9,6 +10,7 @@ import jax.numpy as jnp
 import mujoco
 import numpy as np
 import pytest
+from mujoco import mjx
 from mujoco.mjx.third_party.mujoco_warp import OverflowType
 
 import mwjax
@@ -112,6 +114,43 @@ def test_compile_layouts_step_exactly_as_default(env, episode, physics):
         np.testing.assert_array_equal(a.reward, b.reward)
         for x, y in zip(a.physics, b.physics, strict=True):
             np.testing.assert_array_equal(x.qvel, y.qvel)
+
+
+def test_carried_state_steps_as_whole_data(env, episode):
+    """The state carries each scene's `PhysicsState`, not its whole `mjx.Data`: stepping it must
+    give what stepping the whole data on gives, bit for bit. A field that Warp's step reads
+    before recomputing it, and that `PhysicsState` lacks, breaks this."""
+    physics = env.physics
+    steps = [jax.vmap(functools.partial(mjx.step, g.device_model)) for g in physics.groups]
+    poses = [jax.vmap(functools.partial(mjx.kinematics, g.device_model)) for g in physics.groups]
+
+    @jax.jit
+    def whole(state, actions):
+        datas = tuple(physics.data(g, s) for g, s in enumerate(state.physics))
+        trail = []
+        for action in actions:
+            datas = list(env._apply_action(datas, action))
+            for g, step in enumerate(steps):
+                for _ in range(physics.config.substeps):
+                    datas[g] = step(datas[g])
+                datas[g] = poses[g](datas[g])
+            trail.append(tuple(datas))
+        return trail
+
+    @jax.jit
+    def carried(state, actions):
+        states, trail = state.physics, []
+        for action in actions:
+            states = physics.step(env._apply_action(states, action))
+            trail.append(states)
+        return trail
+
+    actions = jax.random.uniform(jax.random.key(11), (4, env.num_envs, 4), minval=-1.0, maxval=1.0)
+    for datas, states in zip(whole(episode[0], actions), carried(episode[0], actions), strict=True):
+        for data, state in zip(datas, states, strict=True):
+            for field in ("qpos", "qvel", "qacc_warmstart", "xpos", "geom_xmat"):
+                np.testing.assert_array_equal(getattr(data, field), getattr(state, field), err_msg=field)
+    assert np.abs(np.asarray(datas[0].qvel)).max() > 0  # the physics did move
 
 
 def test_different_keys_draw_different_goals(env, compiled):

@@ -40,8 +40,9 @@ class PhysicsConfig:
     # Contact and constraint buffers. Warp preallocates them and drops what overflows. Contacts
     # are pooled over the batch; constraint rows are per env. Warp's cost grows with the rows
     # allocated (benchmarks/results/throughput-buffers-9a338f8-…md): "per_scene" sizes them from
-    # what MuJoCo C reaches in each scene (`mwjax.models.constraint_rows`). Not the default yet:
-    # its one MT50 run on the GPU failed in Warp's graph capture (README, Performance).
+    # what MuJoCo C reaches in each scene (`mwjax.models.constraint_rows`), and every step
+    # refills fewer bytes (`PhysicsState`): MT1 pick-place 1.50M env steps/s against 1.32M. Not
+    # the default yet: its MT50 runs on the GPU failed in Warp's graph capture (README).
     contacts_per_env: int = 64
     constraints_per_env: int | Literal["per_scene"] = 512
     # Slots of scratch for Warp's convex collider (GJK/EPA), pooled over a scene's batch for each
@@ -67,7 +68,8 @@ class PhysicsConfig:
     # called at every site: substeps, the autoreset branch, resets that step), so the step
     # program is traced and lowered with 72 physics calls for MT50 instead of 264. The calls
     # then share Warp call ids, and Warp keys its captured CUDA graphs by call id and buffers:
-    # with 64 CCD slots per env this ran out of GPU memory inside Warp (README, Compile).
+    # with 64 CCD slots per env this ran out of GPU memory inside Warp. With the per-scene slots
+    # it ran, lowering in half the time, but the step's compile is the cache read's (README).
     share_traces: bool = False
 
     def __post_init__(self) -> None:

@@ -22,7 +22,10 @@ import warp
 from mujoco import mjx
 from mujoco.mjx.third_party.mujoco_warp import OverflowType
 
+from mwjax import warp_streams
 from mwjax.models import ccd_pairs, constraint_rows, load_scene
+
+warp_streams.install()
 
 # The `Physics.overflow` flags of buffers whose excess Warp drops (convex-collider pairs,
 # constraint rows, contacts); the other flags are limits reached (solver, EPA horizon).
@@ -37,14 +40,13 @@ class PhysicsConfig:
     substeps: int = 5
     iterations: int | None = None
     ls_iterations: int | None = None
-    # Contact and constraint buffers. Warp preallocates them and drops what overflows. Contacts
-    # are pooled over the batch; constraint rows are per env. Warp's cost grows with the rows
-    # allocated (benchmarks/results/throughput-buffers-9a338f8-…md): "per_scene" sizes them from
-    # what MuJoCo C reaches in each scene (`mwjax.models.constraint_rows`), and every step
-    # refills fewer bytes (`PhysicsState`): MT1 pick-place 1.50M env steps/s against 1.32M. Not
-    # the default yet: its MT50 runs on the GPU failed in Warp's graph capture (README).
+    # Contact and constraint buffers. Warp preallocates them and drops what overflows (flagged
+    # in `Physics.overflow`). Contacts are pooled over the batch; constraint rows are per env.
+    # Warp's cost grows with the rows allocated (benchmarks/results/throughput-buffers-9a338f8-…
+    # md) and every step refills them (`PhysicsState`): "per_scene" gives each scene twice the
+    # rows MuJoCo C reaches in it (`mwjax.models.constraint_rows`, 128-448 instead of 512).
     contacts_per_env: int = 64
-    constraints_per_env: int | Literal["per_scene"] = 512
+    constraints_per_env: int | Literal["per_scene"] = "per_scene"
     # Slots of scratch for Warp's convex collider (GJK/EPA), pooled over a scene's batch for each
     # pair of geom types: one per geom pair that it finds in contact (`naccdmax`); a pair past
     # the last slot is dropped (`Physics.overflow` says so). Warp allocates ~7.5 KB per slot in

@@ -208,10 +208,10 @@ def test_constraint_buffers_hold_twice_what_mujoco_c_reaches_in_each_scene(env):
     for scene, entry in table.items():
         rows = constraint_rows(scene)
         assert rows >= 2 * entry["max_rows"] and rows >= 128 and rows % 32 == 0
-    assert {env.physics.constraint_rows(g.scene) for g in env.physics.groups} == {512}
-    per_scene = env.replace(physics=mwjax.PhysicsConfig(constraints_per_env="per_scene"))
-    for group in per_scene.physics.groups:
-        assert per_scene.physics.constraint_rows(group.scene) == constraint_rows(group.scene)
+    for group in env.physics.groups:
+        assert env.physics.constraint_rows(group.scene) == constraint_rows(group.scene)
+    fixed = env.replace(physics=mwjax.PhysicsConfig(constraints_per_env=512))
+    assert {fixed.physics.constraint_rows(g.scene) for g in fixed.physics.groups} == {512}
 
 
 def test_convex_collider_slots_hold_an_expert_press_and_a_shortfall_is_reported():

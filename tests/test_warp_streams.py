@@ -28,7 +28,7 @@ def test_capture_on_a_stream_whose_older_wrapper_was_collected():
         with wp.ScopedCapture() as capture:
             values.fill_(2.0)
         wp.capture_launch(capture.graph)
-    newer.synchronize()
+    wp.synchronize_stream(newer)
     assert values.numpy().tolist() == [2.0] * 8
     del newer
     gc.collect()

@@ -49,7 +49,7 @@ def main() -> None:
         else:
             action = jax.random.uniform(key, (env.num_envs, 4), minval=-1.0, maxval=1.0)
         state = env.step(state, action)
-        return state, (env.physics.overflow(state.physics), state.info["success"])
+        return state, (state.info["physics_overflow"], state.info["success"])
 
     run = jax.jit(lambda state, key: jax.lax.scan(body, state, jax.random.split(key, args.steps)))
     state = jax.jit(env.reset)(jax.random.key(args.seed))

@@ -11,7 +11,7 @@ import dataclasses
 import functools
 from collections.abc import Mapping, Sequence
 from importlib import resources
-from typing import Any
+from typing import Any, NamedTuple
 
 import jax
 import jax.numpy as jnp
@@ -31,6 +31,8 @@ _HAND_SPACE_LOW = np.array([-0.525, 0.348, -0.0525], np.float32)
 _HAND_SPACE_HIGH = np.array([0.525, 1.025, 0.7], np.float32)
 _HAND_QUAT = np.array([1.0, 0.0, 1.0, 0.0], np.float32)
 _ACTION_SCALE = 1.0 / 100
+# SawyerXYZEnv._reset_hand: 50 env steps of physics driving the hand to `hand_init_pos`.
+_SETTLE_ENV_STEPS = 50
 # The float info terms every V2 kernel reports besides `success`.
 _REWARD_INFO = ("near_object", "grasp_reward", "in_place_reward", "obj_to_target", "unscaled_reward")
 AUTORESET_MODES = ("same_step", "next_step", "disabled")
@@ -63,6 +65,14 @@ class State:
         return jnp.take_along_axis(self.goal_order, self.goal_cursor[:, None], axis=1)[:, 0]
 
 
+class Settled(NamedTuple):
+    """The state a reset places objects into: the reference's data right after `_reset_hand`
+    (poses as its last `mj_step` left them), one env or a batch."""
+
+    kin: Kinematics
+    qacc_warmstart: Array
+
+
 @dataclasses.dataclass(frozen=True, eq=False)
 class _TaskRows:
     spec: TaskSpec
@@ -70,12 +80,15 @@ class _TaskRows:
     start: int  # first row in the env batch
     local_start: int  # first row in its physics group
     size: int
-    settled: Kinematics
-    # The rest of the settled data a reset copies: mocap_pos, mocap_quat, qacc_warmstart, ctrl.
+    # The recorded settled state (the same for every goal unless `spec.settle_per_goal`).
+    settled: Settled
+    # The hand's part of it, the same in every task: mocap_pos, mocap_quat, ctrl.
     settled_data: dict[str, np.ndarray]
+    # With `spec.settle_per_goal`: the settled state of each of the env's goal variants.
+    settled_per_variant: Settled | None = None
 
 
-def _load_settled(name: str) -> tuple[Kinematics, dict[str, np.ndarray]]:
+def _load_settled(name: str) -> tuple[Settled, dict[str, np.ndarray]]:
     path = resources.files("mwjax.tasks") / "settled_states.npz"
     with resources.as_file(path) as file, np.load(file) as archive:
         fields = {
@@ -86,7 +99,12 @@ def _load_settled(name: str) -> tuple[Kinematics, dict[str, np.ndarray]]:
     if not fields:
         raise ValueError(f"no settled state recorded for {name!r}")
     kin = Kinematics(*(jnp.asarray(fields[f]) for f in Kinematics._fields))
-    return kin, fields
+    return Settled(kin, jnp.asarray(fields["qacc_warmstart"])), fields
+
+
+# Settled states per goal variant, by (scene, its mocap bodies, physics config, task, variants):
+# every env of a process with the same tasks and goals shares them.
+_SETTLED_PER_VARIANT: dict[tuple[Any, ...], Settled] = {}
 
 
 class Env:
@@ -192,7 +210,7 @@ class Env:
                         settled_data=raw,
                     )
                 )
-        self._rows = tuple(rows)
+        self._rows = tuple(self._with_settled_variants(rows, variants, n_variants))
         self.task_list = tuple(r.spec.name for r in rows)
         self.num_envs = len(rows) * envs_per_task
         self.task_names = tuple(name for name in self.task_list for _ in range(envs_per_task))
@@ -275,7 +293,7 @@ class Env:
         order, keys = self._shuffled_pools(keys)
         cursor = jnp.zeros(self.num_envs, jnp.int32)
         all_rows = jnp.ones(self.num_envs, bool)
-        return self._reset_rows(self.physics.make_data(), rand_vecs, order, cursor, keys, all_rows)
+        return self._reset_rows(self.physics.make_data(), rand_vecs, None, order, cursor, keys, all_rows)
 
     def replace(self, **changes: Any) -> Env:
         """The same env with some constructor arguments changed (a new, separately compiled env)."""
@@ -339,6 +357,7 @@ class Env:
             self._kinematics(state.physics), state, action
         )
         info["invalid_action"] = state.info["invalid_action"]
+        info["physics_overflow"] = state.info["physics_overflow"]
         return dataclasses.replace(state, obs=obs, reward=reward, info=info, constants=constants)
 
     def step(self, state: State, action: Array) -> State:
@@ -351,6 +370,7 @@ class Env:
         kin = self._kinematics(datas)
         obs, reward, info, constants = self._observe_and_reward(kin, state, action)
         info["invalid_action"] = ~valid
+        info["physics_overflow"] = self.physics.overflow(datas)
         steps = state.steps + 1
         episode_return = state.episode_return + reward
         info["episode_return"] = episode_return
@@ -408,50 +428,48 @@ class Env:
         cursor = jax.vmap(lambda k, n: jax.random.randint(k, (), 0, n))(split[:, 0], self._goal_pool_sizes)
         return cursor.astype(jnp.int32), split[:, 1]
 
-    def _rand_vecs(self, order: Array, cursor: Array) -> Array:
-        variant = jnp.take_along_axis(order, cursor[:, None], axis=1)[:, 0]
-        return self._variants[jnp.asarray(self.task_ids), variant]
-
     def _start(self, order: Array, cursor: Array, keys: Array) -> State:
-        rand_vecs = self._rand_vecs(order, cursor)
+        variant = jnp.take_along_axis(order, cursor[:, None], axis=1)[:, 0]
+        rand_vecs = self._variants[jnp.asarray(self.task_ids), variant]
         all_rows = jnp.ones(self.num_envs, bool)
-        return self._reset_rows(self.physics.make_data(), rand_vecs, order, cursor, keys, all_rows)
+        return self._reset_rows(self.physics.make_data(), rand_vecs, variant, order, cursor, keys, all_rows)
 
     def _reset_rows(
         self,
         datas: tuple[PhysicsState, ...],
         rand_vecs: Array,
+        variant: Array | None,
         goal_order: Array,
         goal_cursor: Array,
         keys: Array,
         done: Array,
     ) -> State:
-        """Fresh episodes in the rows where `done`; the other rows' physics is kept as is."""
+        """Fresh episodes in the rows where `done`; the other rows' physics is kept as is. Rows
+        reset to goal variants `variant` (indices) when given, else to the vectors `rand_vecs`."""
         placements: list[Placement] = []
+        settled: list[Settled] = []
         new_datas = list(datas)
         for g in range(len(self.physics.groups)):
-            new_datas[g], group_placements = self._reset_group(g, datas[g], rand_vecs, done)
+            new_datas[g], group_placements, group_settled = self._reset_group(
+                g, datas[g], rand_vecs, variant, done
+            )
             placements.extend(group_placements)
+            settled.extend(group_settled)
         datas = self.physics.kinematics(tuple(new_datas))
         kin = self._kinematics(datas)
 
         curr_parts, target_parts, constant_parts = [], [], []
-        for rows, placement in zip(self._rows, placements, strict=True):
+        for rows, placement, rows_settled in zip(self._rows, placements, settled, strict=True):
             frames = kin[rows.group].rows(rows.local_start, rows.local_start + rows.size)
             model = self.physics.groups[rows.group].model
-            settled_frame = Frame(model, rows.settled)
 
             def one(
-                k: Kinematics,
-                p: Placement,
-                rows: _TaskRows = rows,
-                model: Any = model,
-                settled: Frame = settled_frame,
+                k: Kinematics, p: Placement, s: Kinematics, rows: _TaskRows = rows, model: Any = model
             ) -> tuple[Array, dict[str, Array]]:
                 frame = Frame(model, k)
-                return _current_obs(rows.spec, frame), rows.spec.constants(frame, p, settled)
+                return _current_obs(rows.spec, frame), rows.spec.constants(frame, p, Frame(model, s))
 
-            curr, constants = jax.vmap(one)(frames, placement)
+            curr, constants = jax.vmap(one)(frames, placement, rows_settled.kin)
             curr_parts.append(curr)
             # A goal read off the placed scene (e.g. a site on a moved fixture) overrides `place`'s.
             target_parts.append(constants.pop("target_pos", placement.target_pos))
@@ -464,6 +482,7 @@ class Env:
         info = {name: zeros for name in _REWARD_INFO}
         info["success"] = jnp.zeros(self.num_envs, bool)
         info["invalid_action"] = jnp.zeros(self.num_envs, bool)
+        info["physics_overflow"] = jnp.zeros(self.num_envs, jnp.int32)
         info["episode_return"] = zeros
         info["episode_length"] = jnp.zeros(self.num_envs, jnp.int32)
         info["final_obs"] = obs
@@ -484,67 +503,145 @@ class Env:
         )
 
     def _reset_group(
-        self, g: int, data: PhysicsState, rand_vecs: Array, done: Array
-    ) -> tuple[PhysicsState, list[Placement]]:
-        """Group `g`'s data with its `done` rows placed, and each member task's placements."""
+        self, g: int, data: PhysicsState, rand_vecs: Array, variant: Array | None, done: Array
+    ) -> tuple[PhysicsState, list[Placement], list[Settled]]:
+        """Group `g`'s data with its `done` rows placed, and each member task's placements and
+        settled states."""
         group = self.physics.groups[g]
         members = [r for r in self._rows if r.group == g]
         group_done = done[group.start : group.start + group.size]
         vecs = [rand_vecs[r.start : r.start + r.size, : len(r.spec.random_low)] for r in members]
-        settled = [
-            jax.tree.map(lambda x, n=r.size: jnp.broadcast_to(x, (n, *x.shape)), r.settled) for r in members
-        ]
+        settled = self._settled(g, members, vecs, variant)
         placements = [
-            _place(r.spec, group.model, v, k) for r, v, k in zip(members, vecs, settled, strict=True)
+            _place(r.spec, group.model, v, s.kin) for r, v, s in zip(members, vecs, settled, strict=True)
         ]
         steps = max(r.spec.reset_env_steps for r in members)
         if steps == 0:
-            return self._placed_data(
-                data, group, list(zip(members, placements, strict=True)), group_done
-            ), placements
+            placed = self._placed_data(
+                data, group, list(zip(members, placements, settled, strict=True)), group_done
+            )
+            return placed, placements, settled
 
         # The reference steps the physics after moving fixed bodies but before writing joints:
         # move the bodies only, step, then place again on the stepped state.
         stepping = [r.spec.reset_env_steps > 0 for r in members]
         bodies_only = [
-            dataclasses.replace(p, qpos=k.qpos, qvel=k.qvel) if s else p
-            for p, k, s in zip(placements, settled, stepping, strict=True)
+            dataclasses.replace(p, qpos=s.kin.qpos, qvel=s.kin.qvel) if st else p
+            for p, s, st in zip(placements, settled, stepping, strict=True)
         ]
-        pre = self._placed_data(data, group, list(zip(members, bodies_only, strict=True)), group_done)
+        pre = self._placed_data(
+            data, group, list(zip(members, bodies_only, settled, strict=True)), group_done
+        )
         for _ in range(steps):
             pre = self.physics.step_group(g, pre)
         stepped = Kinematics.of(pre)
         placements = [
-            _place(r.spec, group.model, v, stepped.rows(r.local_start, r.local_start + r.size)) if s else p
-            for r, v, p, s in zip(members, vecs, placements, stepping, strict=True)
+            _place(r.spec, group.model, v, stepped.rows(r.local_start, r.local_start + r.size)) if st else p
+            for r, v, p, st in zip(members, vecs, placements, stepping, strict=True)
         ]
-        placed = self._placed_data(data, group, list(zip(members, placements, strict=True)), group_done)
+        placed = self._placed_data(
+            data, group, list(zip(members, placements, settled, strict=True)), group_done
+        )
         stepped_rows = group_done & jnp.asarray(np.repeat(stepping, [r.size for r in members]))
-        return placed.replace(
+        placed = placed.replace(
             qacc_warmstart=_select(stepped_rows, pre.qacc_warmstart, placed.qacc_warmstart)
-        ), placements
+        )
+        return placed, placements, settled
+
+    def _settled(
+        self, g: int, members: list[_TaskRows], vecs: list[Array], variant: Array | None
+    ) -> list[Settled]:
+        """Each member task's settled state for its rows' goals, `(rows, ...)`: the recorded one,
+        the one of the row's goal variant, or, for goals given as vectors, settled here."""
+        settled: list[Settled | None] = []
+        unsettled = []
+        for i, rows in enumerate(members):
+            if not rows.spec.settle_per_goal:
+                settled.append(_broadcast(rows.settled, rows.size))
+            elif variant is not None:
+                rows_variant = variant[rows.start : rows.start + rows.size]
+                settled.append(jax.tree.map(lambda x, v=rows_variant: x[v], rows.settled_per_variant))
+            else:
+                settled.append(None)
+                unsettled.append(i)
+        if unsettled:
+            computed = self._settle(g, [(members[i], vecs[i]) for i in unsettled])
+            for i, s in zip(unsettled, computed, strict=True):
+                settled[i] = s
+        return settled
+
+    def _settle(self, g: int, parts: list[tuple[_TaskRows, Array]]) -> list[Settled]:
+        """The reference's `_reset_hand` as a reset's second `reset_model` call runs it: from a
+        fresh state (`mj_resetData`), with the fixed bodies already where the first call moved
+        them for the goal, 50 env steps drive the hand to `hand_init_pos` with the fingers
+        closing. `parts` are member tasks of group `g` with goal vectors `(rows, d)`; one settled
+        batch per part, poses as the last `mj_step` leaves them."""
+        group = self.physics.groups[g]
+        sizes = [len(vecs) for _, vecs in parts]
+        # Where the fixed bodies stand is set by the goal alone, so any settled state places them.
+        poses = [
+            _mocap_poses(
+                group.model, rows, _place(rows.spec, group.model, vecs, _broadcast(rows.settled.kin, n))
+            )
+            for (rows, vecs), n in zip(parts, sizes, strict=True)
+        ]
+        data = self.physics.fresh(g, sum(sizes)).replace(
+            mocap_pos=jnp.concatenate([pos for pos, _ in poses]),
+            mocap_quat=jnp.concatenate([quat for _, quat in poses]),
+            ctrl=_broadcast(parts[0][0].settled_data["ctrl"], sum(sizes)),
+        )
+        data = jax.lax.fori_loop(
+            0, _SETTLE_ENV_STEPS, lambda _, d: self.physics.step_group(g, d, fresh_poses=False), data
+        )
+        kin, bounds = Kinematics.of(data), np.cumsum([0, *sizes])
+        return [
+            Settled(kin.rows(a, b), data.qacc_warmstart[a:b])
+            for a, b in zip(bounds[:-1], bounds[1:], strict=True)
+        ]
+
+    def _with_settled_variants(
+        self, rows: list[_TaskRows], variants: Mapping[str, np.ndarray], n_variants: int
+    ) -> list[_TaskRows]:
+        """`rows` with the settled state of each goal variant of every `settle_per_goal` task."""
+        rows = list(rows)
+        for g, group in enumerate(self.physics.groups):
+            members = [i for i, r in enumerate(rows) if r.group == g and r.spec.settle_per_goal]
+            if not members:
+                continue
+            vecs = [np.asarray(variants[rows[i].spec.name][:n_variants], np.float32) for i in members]
+            key = (
+                group.scene,
+                group.mocap_bodies,
+                self.physics.config,
+                tuple((rows[i].spec.name, v.tobytes()) for i, v in zip(members, vecs, strict=True)),
+            )
+            if key not in _SETTLED_PER_VARIANT:
+                parts = [rows[i] for i in members]
+                settle = jax.jit(
+                    lambda vs, g=g, parts=parts: self._settle(g, list(zip(parts, vs, strict=True)))
+                )
+                _SETTLED_PER_VARIANT[key] = settle([jnp.asarray(v) for v in vecs])
+            for i, settled in zip(members, _SETTLED_PER_VARIANT[key], strict=True):
+                rows[i] = dataclasses.replace(rows[i], settled_per_variant=settled)
+        return rows
 
     def _placed_data(
-        self, data: PhysicsState, group: Any, parts: list[tuple[_TaskRows, Placement]], done: Array
+        self,
+        data: PhysicsState,
+        group: Any,
+        parts: list[tuple[_TaskRows, Placement, Settled]],
+        done: Array,
     ) -> PhysicsState:
         model = group.model
         mocap_pos, mocap_quat, qpos, qvel, warm, ctrl = [], [], [], [], [], []
-        for rows, placement in parts:
-            n = rows.size
-            pos = np.broadcast_to(model.body_pos[model.body_mocapid >= 0], (n, model.nmocap, 3))
-            quat = np.broadcast_to(model.body_quat[model.body_mocapid >= 0], (n, model.nmocap, 4))
-            # body_mocapid order is body order, which is mocap index order.
-            pos = jnp.asarray(pos, jnp.float32).at[:, 0].set(rows.settled_data["mocap_pos"][0])
-            quat = jnp.asarray(quat, jnp.float32).at[:, 0].set(rows.settled_data["mocap_quat"][0])
-            for name, value in placement.moved_bodies.items():
-                index = int(model.body_mocapid[model.body(name).id])
-                pos = pos.at[:, index].set(value)
+        for rows, placement, settled in parts:
+            pos, quat = _mocap_poses(model, rows, placement)
             mocap_pos.append(pos)
             mocap_quat.append(quat)
             qpos.append(placement.qpos)
             qvel.append(placement.qvel)
-            warm.append(jnp.broadcast_to(rows.settled_data["qacc_warmstart"], (n, model.nv)))
-            ctrl.append(jnp.broadcast_to(rows.settled_data["ctrl"], (n, model.nu)))
+            warm.append(settled.qacc_warmstart)
+            ctrl.append(_broadcast(rows.settled_data["ctrl"], len(placement.qpos)))
         fresh = {
             "qpos": qpos,
             "qvel": qvel,
@@ -565,8 +662,9 @@ class Env:
         cursor, keys = state.goal_cursor, state.key
         if self.goal_sampling == "on_reset":
             cursor, keys = self._draw_cursor(keys)
-        rand_vecs = self._rand_vecs(state.goal_order, cursor)
-        return self._reset_rows(state.physics, rand_vecs, state.goal_order, cursor, keys, done)
+        variant = jnp.take_along_axis(state.goal_order, cursor[:, None], axis=1)[:, 0]
+        rand_vecs = self._variants[jnp.asarray(self.task_ids), variant]
+        return self._reset_rows(state.physics, rand_vecs, variant, state.goal_order, cursor, keys, done)
 
     def _autoreset(self, state: State, done: Array) -> State:
         """SAME_STEP: the `done` rows carry the next episode's start, their step's reward, flags
@@ -708,6 +806,25 @@ class Env:
 def _place(spec: TaskSpec, model: Any, rand_vecs: Array, settled: Kinematics) -> Placement:
     """`spec.place` over a task's rows, each from its own settled (or stepped) state."""
     return jax.vmap(lambda v, k: spec.place(v, Frame(model, k)))(rand_vecs, settled)
+
+
+def _broadcast(tree: Any, n: int) -> Any:
+    """One env's arrays repeated over `n` rows."""
+    return jax.tree.map(lambda x: jnp.broadcast_to(jnp.asarray(x), (n, *jnp.shape(x))), tree)
+
+
+def _mocap_poses(model: Any, rows: _TaskRows, placement: Placement) -> tuple[Array, Array]:
+    """Every mocap body's pose over a task's rows, `(rows, nmocap, 3 / 4)`: the hand's settled
+    target, the fixed bodies the task moves where `placement` puts them, the rest as compiled."""
+    n = len(placement.qpos)
+    is_mocap = model.body_mocapid >= 0  # body order is mocap index order
+    pos = jnp.asarray(np.broadcast_to(model.body_pos[is_mocap], (n, model.nmocap, 3)), jnp.float32)
+    quat = jnp.asarray(np.broadcast_to(model.body_quat[is_mocap], (n, model.nmocap, 4)), jnp.float32)
+    pos = pos.at[:, 0].set(rows.settled_data["mocap_pos"][0])
+    quat = quat.at[:, 0].set(rows.settled_data["mocap_quat"][0])
+    for name, value in placement.moved_bodies.items():
+        pos = pos.at[:, int(model.body_mocapid[model.body(name).id])].set(value)
+    return pos, quat
 
 
 def _select(mask: Array, new: Array, old: Array) -> Array:

@@ -22,10 +22,11 @@ import warp
 from mujoco import mjx
 from mujoco.mjx.third_party.mujoco_warp import OverflowType
 
-from mwjax import warp_streams
+from mwjax import warp_equality, warp_streams
 from mwjax.models import ccd_pairs, constraint_rows, load_scene
 
 warp_streams.install()
+warp_equality.install()
 
 # The `Physics.overflow` flags of buffers whose excess Warp drops (convex-collider pairs,
 # constraint rows, contacts); the other flags are limits reached (solver, EPA horizon).
@@ -133,7 +134,7 @@ class PhysicsState:
     # carried so that the batch steps bit for bit as a chain of whole `mjx.Data` does.
     cvel: jax.Array
     cdof_dot: jax.Array
-    # Warp's `OverflowType` flags raised since the data was made (`Physics.overflow`).
+    # Warp's `OverflowType` flags raised in the last `Physics.step` (`Physics.overflow`).
     overflow: jax.Array
 
     def replace(self, **changes: jax.Array) -> PhysicsState:
@@ -189,29 +190,41 @@ class Physics:
         # Every step rebuilds each scene's whole data from `mjx.make_data`; traced afresh at each
         # of MT50's ~100 sites that took 40 s of the step's lowering on the H200. Jitted, it is
         # traced once per scene. (It makes no Warp call, so none of `share_traces`' concerns.)
-        self._made = tuple(jax.jit(functools.partial(self._make_data, g)) for g in range(len(groups)))
+        self._made: dict[tuple[int, int], Callable[[], mjx.Data]] = {}
 
     def make_data(self) -> tuple[PhysicsState, ...]:
         """Fresh batched states (the scene's qpos0, poses not yet computed), one per group."""
-        return tuple(_carried(self._made[g]()) for g in range(len(self.groups)))
+        return tuple(self.fresh(g, group.size) for g, group in enumerate(self.groups))
+
+    def fresh(self, g: int, rows: int) -> PhysicsState:
+        """A fresh state of `rows` envs of group `g`'s scene (any batch size: e.g. one row per
+        goal variant), with buffers sized for that batch."""
+        return _carried(self._maker(g, rows)())
 
     def data(self, g: int, state: PhysicsState) -> mjx.Data:
         """Group `g`'s full `mjx.Data` for `state`: what the next step reads, the rest as
         `mjx.make_data` leaves it until a step or kinematics computes it."""
-        data = self._made[g]().replace(**{name: getattr(state, name) for name in _FIELDS})
+        data = self._maker(g, state.qpos.shape[0])().replace(
+            **{name: getattr(state, name) for name in _FIELDS}
+        )
         return data.replace(_impl=data._impl.replace(overflow=state.overflow))
 
-    def _make_data(self, g: int) -> mjx.Data:
+    def _maker(self, g: int, rows: int) -> Callable[[], mjx.Data]:
+        if (g, rows) not in self._made:
+            self._made[g, rows] = jax.jit(functools.partial(self._make_data, g, rows))
+        return self._made[g, rows]
+
+    def _make_data(self, g: int, rows: int) -> mjx.Data:
         group = self.groups[g]
         make = functools.partial(
             mjx.make_data,
             group.model,
             impl="warp",
-            naconmax=group.size * self.config.contacts_per_env,
-            naccdmax=group.size * self.ccd_pairs(group.scene),
+            naconmax=rows * self.config.contacts_per_env,
+            naccdmax=rows * self.ccd_pairs(group.scene),
             njmax=self.constraint_rows(group.scene),
         )
-        return jax.vmap(lambda _: make())(jnp.arange(group.size))
+        return jax.vmap(lambda _: make())(jnp.arange(rows))
 
     def constraint_rows(self, scene: str) -> int:
         """Constraint rows allocated per env of `scene`."""
@@ -227,11 +240,16 @@ class Physics:
         return pairs
 
     def step(self, states: tuple[PhysicsState, ...]) -> tuple[PhysicsState, ...]:
-        """`substeps` physics steps, then kinematics so positions describe the new state."""
-        return tuple(self.step_group(g, state) for g, state in enumerate(states))
+        """`substeps` physics steps, then kinematics so positions describe the new state. The
+        overflow flags of the result are those this step raised."""
+        return tuple(
+            self.step_group(g, state.replace(overflow=jnp.zeros_like(state.overflow)))
+            for g, state in enumerate(states)
+        )
 
-    def step_group(self, g: int, state: PhysicsState) -> PhysicsState:
-        """`step` for group `g` alone."""
+    def step_group(self, g: int, state: PhysicsState, fresh_poses: bool = True) -> PhysicsState:
+        """`step` for group `g` alone (a batch of any size). `fresh_poses=False` leaves the poses
+        as MuJoCo C's `mj_step` does, computed before the last substep's integration."""
         step = self._substep[g]
         data = self.data(g, state)
         # Unrolled by default. The loop (`unroll_substeps=False`) halves MT50's warm compile on
@@ -242,12 +260,13 @@ class Physics:
                 data = step(data)
         else:
             data = jax.lax.fori_loop(0, self.config.substeps, lambda _, d: step(d), data)
-        return _carried(self._kinematics[g](data))
+        return _carried(self._kinematics[g](data) if fresh_poses else data)
 
     def overflow(self, states: tuple[PhysicsState, ...]) -> jax.Array:
-        """Per env (rows in batch order), the `OverflowType` flags Warp raised since its data was
-        made: buffers that overflowed (`DROPPED`: Warp drops what does not fit, so that env's
-        physics left the reference's) and limits reached (solver iterations, EPA horizon)."""
+        """Per env (rows in batch order), the `OverflowType` flags Warp raised in the last `step`
+        (or, for stepping by `step_group` alone, since the data was made): buffers that overflowed
+        (`DROPPED`: Warp drops what does not fit, so that env's physics left the reference's) and
+        limits reached (solver iterations, EPA horizon)."""
         return jnp.concatenate([state.overflow for state in states])
 
     def kinematics(self, states: tuple[PhysicsState, ...]) -> tuple[PhysicsState, ...]:

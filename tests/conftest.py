@@ -7,8 +7,10 @@ import dataclasses
 import os
 
 import jax
+import jax.numpy as jnp
+import numpy as np
 import pytest
-from reference import recorded_tasks, shape
+from reference import EPISODES, load, load_episodes, recorded_tasks, shape
 
 import mwjax
 from mwjax.tasks import TASKS
@@ -29,15 +31,26 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
 
 @dataclasses.dataclass(frozen=True)
 class AllTasks:
-    """Every registered task with a reference recording, one env per recorded reset."""
+    """Every registered task with a reference recording, one env per recorded episode. Its goal
+    variants are the recorded goals: the parity fixtures' first, then the episode fixtures'."""
 
     env: mwjax.Env
-    reset_to: object
+    reset_with_variants: object
     step: object
+
+    def reset_to_recorded(self, first_variant: int) -> mwjax.State:
+        """Every env of each task on its own recorded goal, from `first_variant` on."""
+        env = self.env
+        variants = first_variant + np.tile(np.arange(env.envs_per_task), len(env.task_list))
+        return self.reset_with_variants(jnp.asarray(variants))
 
 
 @pytest.fixture(scope="session")
 def all_tasks() -> AllTasks:
     ported = [task for task in recorded_tasks() if task in TASKS]
-    env = mwjax.make(ported, envs_per_task=shape(ported[0])[0])
-    return AllTasks(env=env, reset_to=jax.jit(env.reset_to), step=jax.jit(env.step))
+    goals = {
+        task: np.concatenate([load(task)["rand_vec"], load_episodes(EPISODES, task)["rand_vec"]])
+        for task in ported
+    }
+    env = mwjax.make(ported, envs_per_task=shape(ported[0])[0], goal_variants=goals)
+    return AllTasks(env=env, reset_with_variants=jax.jit(env.reset_with_variants), step=jax.jit(env.step))

@@ -5,6 +5,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 import json
+import os
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -14,7 +15,15 @@ import numpy as np
 
 import mwjax
 
-FIXTURES = Path(__file__).parent / "fixtures" / "reference"
+# Recorded by tools/record_reference.py; point MWJAX_REFERENCE_FIXTURES at a fresh recording (any
+# seed, all tasks) to run the parity suite on it.
+# Whole recorded episodes (tools/record_episodes.py) and the engine-only baseline on them
+# (tools/reference_baseline.py); the variables point the suite at a fresh recording.
+EPISODES = Path(os.environ.get("MWJAX_EPISODE_FIXTURES", Path(__file__).parent / "fixtures" / "episodes"))
+BASELINE = Path(
+    os.environ.get("MWJAX_EPISODE_BASELINE", Path(__file__).parent / "fixtures" / "episodes_baseline")
+)
+FIXTURES = Path(os.environ.get("MWJAX_REFERENCE_FIXTURES", Path(__file__).parent / "fixtures" / "reference"))
 
 
 @functools.cache
@@ -34,13 +43,6 @@ def shape(task: str) -> tuple[int, int]:
     return load(task)["action"].shape[:2]
 
 
-def rand_vec_rows(env: mwjax.Env, repeat: int) -> np.ndarray:
-    """Each task's recorded goal variants, each repeated `repeat` times, in batch order."""
-    width = max(v.shape[1] for v in env.goal_variants.values())
-    vecs = [np.repeat(load(task)["rand_vec"], repeat, axis=0) for task in env.task_list]
-    return np.concatenate([np.pad(v, ((0, 0), (0, width - v.shape[1]))) for v in vecs])
-
-
 @dataclasses.dataclass(frozen=True)
 class Replay:
     """mwjax's obs, reward and success on every recorded post-step state, per task, (R, T, ...)."""
@@ -50,24 +52,23 @@ class Replay:
     success: dict[str, np.ndarray]
 
 
-def replay_recorded_states(
-    tasks: list[str], reward_version: str = "v2", reference_init_tcp: Sequence[str] = ()
-) -> Replay:
+def replay_recorded_states(tasks: list[str], reward_version: str = "v2") -> Replay:
     """Loads each recorded post-step physics state into one batched env (one row per recorded
-    step), with the recorded previous observation as the stacked frame, and evaluates it. Tasks in
-    `reference_init_tcp` get the reference's recorded `init_tcp` episode constant.
+    step), with the recorded previous observation as the stacked frame, and evaluates it. Episode
+    constants are mwjax's own, from its reset to each recorded goal.
 
     Constants latched on an episode's first step are evaluated on each reset's first recorded
     step, then given to that reset's later steps (evaluated as steps > 0, so they keep them)."""
     resets, steps = shape(tasks[0])
-    env = mwjax.make(tasks, envs_per_task=resets * steps, reward_version=reward_version)
+    goals = {task: load(task)["rand_vec"] for task in tasks}
+    env = mwjax.make(tasks, envs_per_task=resets * steps, reward_version=reward_version, goal_variants=goals)
     order = env.task_list
 
     def rows(task: str, key: str) -> np.ndarray:
         value = load(task)[key]
         return value.reshape(resets * steps, *value.shape[2:])
 
-    state = jax.jit(env.reset_to)(jnp.asarray(rand_vec_rows(env, steps)))
+    state = jax.jit(env.reset_with_variants)(jnp.tile(jnp.repeat(jnp.arange(resets), steps), len(order)))
     recorded = {
         t: {
             "qpos": rows(t, "qpos"),
@@ -78,10 +79,6 @@ def replay_recorded_states(
         for t in order
     }
     state = jax.jit(env.with_physics_state)(state, recorded)
-    init_tcp = np.array(state.constants["init_tcp"])
-    for task in set(reference_init_tcp) & set(order):
-        init_tcp[env.task_rows(task)] = np.repeat(load(task)["const_init_tcp"], steps, axis=0)
-    state = dataclasses.replace(state, constants={**state.constants, "init_tcp": jnp.asarray(init_tcp)})
     actions = np.concatenate([rows(t, "action") for t in order])
     previous = [
         np.concatenate([load(t)["reset_obs"][:, None], load(t)["obs"][:, :-1]], axis=1) for t in order
@@ -105,3 +102,40 @@ def replay_recorded_states(
     return Replay(
         obs=per_task(state.obs), reward=per_task(state.reward), success=per_task(state.info["success"])
     )
+
+
+def load_episodes(directory: Path, task: str) -> dict:
+    """One task's recorded episodes (tools/record_episodes.py) or baseline (tools/reference_baseline.py)."""
+    with np.load(directory / f"{task}.npz") as archive:
+        arrays = {key: archive[key] for key in archive.files}
+    arrays["meta"] = json.loads(str(arrays["meta"]))
+    return arrays
+
+
+def episode_free_run(all_tasks, tasks: Sequence[str]) -> dict[str, dict[str, np.ndarray]]:
+    """mwjax's own episodes for the recorded ones in `EPISODES`: reset to each recorded goal, then
+    the recorded actions, open loop. Per task: reset qpos/qvel/obs (R, ...) and per-step V2 reward
+    and success (R, T). Runs every task of `all_tasks` (one env per recorded episode)."""
+    env = all_tasks.env
+    episodes = {task: load_episodes(EPISODES, task) for task in env.task_list}
+    resets, steps = episodes[env.task_list[0]]["action"].shape[:2]
+    actions = np.concatenate([e["action"] for e in episodes.values()])
+    state = all_tasks.reset_to_recorded(first_variant=resets)
+    out = {}
+    for task in tasks:
+        kin = env.kinematics(state, task)
+        out[task] = {
+            "reset_qpos": np.asarray(kin.qpos),
+            "reset_qvel": np.asarray(kin.qvel),
+            "reset_obs": np.asarray(state.obs[env.task_rows(task)]),
+        }
+    reward, success = [], []
+    for t in range(steps):
+        state = all_tasks.step(state, jnp.asarray(actions[:, t]))
+        reward.append(np.asarray(state.reward))
+        success.append(np.asarray(state.info["success"]))
+    reward, success = np.stack(reward, axis=1), np.stack(success, axis=1)
+    for task in tasks:
+        rows = env.task_rows(task)
+        out[task].update(reward=reward[rows], success=success[rows])
+    return out

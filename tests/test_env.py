@@ -228,12 +228,27 @@ def test_convex_collider_slots_hold_an_expert_press_and_a_shortfall_is_reported(
         )
         step = jax.jit(lambda state, env=env: env.step(state, jnp.clip(expert(state.obs), -1.0, 1.0)))
         state = env.reset(jax.random.key(0))
+        flags = np.zeros(env.num_envs, np.int32)
         for _ in range(80):  # the expert reaches the button and presses it down
             state = step(state)
+            flags |= np.asarray(state.info["physics_overflow"])
         assert bool(state.info["success"].any())
-        flags = np.asarray(env.physics.overflow(state.physics))
+        np.testing.assert_array_equal(flags, np.asarray(env.physics.overflow(state.physics)) | flags)
         assert bool((flags & int(OverflowType.CCD)).any()) == overflows, (slots, flags)
         assert not (flags & int(DROPPED & ~OverflowType.CCD)).any(), (slots, flags)
+
+
+def test_physics_overflow_is_reported_per_env_and_step():
+    """A constraint buffer too small for the hand's weld (6 rows) raises NEFC in every env at every
+    step; the default buffers raise nothing."""
+    for rows, expected in ((4, int(OverflowType.NEFC)), ("per_scene", 0)):
+        env = mwjax.make(["reach-v3"], envs_per_task=2, physics=mwjax.PhysicsConfig(constraints_per_env=rows))
+        state = env.reset(jax.random.key(0))
+        assert state.info["physics_overflow"].dtype == jnp.int32
+        for _ in range(2):
+            state = env.step(state, jnp.zeros((env.num_envs, 4)))
+            flags = np.asarray(state.info["physics_overflow"])
+            np.testing.assert_array_equal(flags & int(DROPPED), expected)
 
 
 @pytest.mark.parametrize("scene", scene_names())

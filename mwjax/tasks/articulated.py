@@ -207,6 +207,7 @@ DOOR_CLOSE = TaskSpec(
 
 DOOR_LOCK = TaskSpec(
     name="door-lock-v3",
+    settle_per_goal=True,
     scene="sawyer_door_lock.xml",
     hand_init_pos=HAND_INIT,
     random_low=(-0.1, 0.8, 0.15),
@@ -225,6 +226,7 @@ DOOR_LOCK = TaskSpec(
 
 DOOR_UNLOCK = TaskSpec(
     name="door-unlock-v3",
+    settle_per_goal=True,
     scene="sawyer_door_lock.xml",
     hand_init_pos=HAND_INIT,
     random_low=(-0.1, 0.8, 0.15),

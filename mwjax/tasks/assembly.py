@@ -102,6 +102,7 @@ ASSEMBLY = TaskSpec(
 # recorded first episode's settled nut.
 DISASSEMBLE = TaskSpec(
     name="disassemble-v3",
+    settle_per_goal=True,
     scene="sawyer_assembly_peg.xml",
     hand_init_pos=(0.0, 0.4, 0.2),
     random_low=(0.0, 0.6, 0.025, -0.1, 0.6, 0.1699),

@@ -51,6 +51,7 @@ def _box_away_from_lid(vec: np.ndarray) -> bool:
 
 BOX_CLOSE = TaskSpec(
     name="box-close-v3",
+    settle_per_goal=True,
     scene="sawyer_box.xml",
     hand_init_pos=(0.0, 0.6, 0.2),
     random_low=(-0.05, 0.5, 0.02, -0.1, 0.7, 0.133),

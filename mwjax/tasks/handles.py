@@ -55,6 +55,7 @@ def _pull_side_constants(frame: Frame, placement: Placement, settled: Frame) -> 
 
 HANDLE_PRESS_SIDE = TaskSpec(
     name="handle-press-side-v3",
+    settle_per_goal=True,
     scene=_SIDE_XML,
     hand_init_pos=HAND_INIT,
     random_low=(-0.35, 0.65, -0.001),
@@ -69,6 +70,7 @@ HANDLE_PRESS_SIDE = TaskSpec(
 
 HANDLE_PULL_SIDE = TaskSpec(
     name="handle-pull-side-v3",
+    settle_per_goal=True,
     scene=_SIDE_XML,
     hand_init_pos=HAND_INIT,
     random_low=(-0.35, 0.65, 0.0),
@@ -100,6 +102,7 @@ def _pull_constants(frame: Frame, placement: Placement, settled: Frame) -> dict[
 
 HANDLE_PRESS = TaskSpec(
     name="handle-press-v3",
+    settle_per_goal=True,
     scene=_FRONT_XML,
     hand_init_pos=HAND_INIT,
     random_low=(-0.1, 0.8, -0.001),
@@ -116,6 +119,7 @@ HANDLE_PRESS = TaskSpec(
 
 HANDLE_PULL = TaskSpec(
     name="handle-pull-v3",
+    settle_per_goal=True,
     scene=_FRONT_XML,
     hand_init_pos=HAND_INIT,
     random_low=(-0.1, 0.8, -0.001),

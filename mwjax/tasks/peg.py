@@ -102,6 +102,7 @@ def _unplug_constants(frame: Frame, placement: Placement, settled: Frame) -> dic
 # episode's settled plug.
 PEG_UNPLUG_SIDE = TaskSpec(
     name="peg-unplug-side-v3",
+    settle_per_goal=True,
     scene="sawyer_peg_unplug_side.xml",
     hand_init_pos=(0.0, 0.6, 0.2),
     random_low=_UNPLUG_BOX_LOW,

@@ -15,6 +15,8 @@ A task is data plus four small pure functions of one env (they are vmapped by th
 Two rarer hooks: `latch(step) -> dict` updates constants on the first step of an episode (V2's
 non-Markov corner, bin-picking), and `reset_env_steps` runs that many env steps of physics between
 moving the fixed bodies and `place`'s joint writes, as box-close and door-lock do in their reset.
+`settle_per_goal` marks the tasks whose settled state depends on the goal (the settling arm or
+objects touch a fixed body that the goal moves).
 
 The core knows nothing else about a task.
 """
@@ -185,6 +187,10 @@ class TaskSpec:
     # Env steps (each `frame_skip` physics steps) the reference runs inside reset_model after
     # moving fixed bodies; `place` is then applied again to the stepped state (its `settled`).
     reset_env_steps: int = 0
+    # The reference settles the hand (`_reset_hand`) with the fixed bodies already at the goal;
+    # where the settling arm or objects touch them, the settled state is a function of the goal,
+    # computed per goal variant (`mwjax.env`) instead of read from the recording.
+    settle_per_goal: bool = False
     hand_low: tuple[float, float, float] = HAND_LOW
     hand_high: tuple[float, float, float] = HAND_HIGH
     goal_low: tuple[float, float, float] | None = None

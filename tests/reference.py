@@ -17,11 +17,15 @@ import mwjax
 
 # Recorded by tools/record_reference.py; point MWJAX_REFERENCE_FIXTURES at a fresh recording (any
 # seed, all tasks) to run the parity suite on it.
-# Whole recorded episodes (tools/record_episodes.py) and the engine-only baseline on them
-# (tools/reference_baseline.py); the variables point the suite at a fresh recording.
+# Whole recorded episodes (tools/record_episodes.py), the engine-only baseline on them and the
+# reference's own replay from a nudged start (tools/reference_baseline.py, without and with
+# --perturb 1e-6); the variables point the suite at a fresh recording.
 EPISODES = Path(os.environ.get("MWJAX_EPISODE_FIXTURES", Path(__file__).parent / "fixtures" / "episodes"))
 BASELINE = Path(
     os.environ.get("MWJAX_EPISODE_BASELINE", Path(__file__).parent / "fixtures" / "episodes_baseline")
+)
+PERTURBED = Path(
+    os.environ.get("MWJAX_EPISODE_PERTURBED", Path(__file__).parent / "fixtures" / "episodes_perturbed")
 )
 FIXTURES = Path(os.environ.get("MWJAX_REFERENCE_FIXTURES", Path(__file__).parent / "fixtures" / "reference"))
 
@@ -52,10 +56,13 @@ class Replay:
     success: dict[str, np.ndarray]
 
 
-def replay_recorded_states(tasks: list[str], reward_version: str = "v2") -> Replay:
+def replay_recorded_states(
+    tasks: list[str], reward_version: str = "v2", reference_init_tcp: Sequence[str] = ()
+) -> Replay:
     """Loads each recorded post-step physics state into one batched env (one row per recorded
     step), with the recorded previous observation as the stacked frame, and evaluates it. Episode
-    constants are mwjax's own, from its reset to each recorded goal.
+    constants are mwjax's own, from its reset to each recorded goal, except that the tasks in
+    `reference_init_tcp` get the reference's recorded `init_tcp`.
 
     Constants latched on an episode's first step are evaluated on each reset's first recorded
     step, then given to that reset's later steps (evaluated as steps > 0, so they keep them)."""
@@ -79,6 +86,10 @@ def replay_recorded_states(tasks: list[str], reward_version: str = "v2") -> Repl
         for t in order
     }
     state = jax.jit(env.with_physics_state)(state, recorded)
+    init_tcp = np.array(state.constants["init_tcp"])
+    for task in reference_init_tcp:
+        init_tcp[env.task_rows(task)] = np.repeat(load(task)["const_init_tcp"], steps, axis=0)
+    state = dataclasses.replace(state, constants={**state.constants, "init_tcp": jnp.asarray(init_tcp)})
     actions = np.concatenate([rows(t, "action") for t in order])
     previous = [
         np.concatenate([load(t)["reset_obs"][:, None], load(t)["obs"][:, :-1]], axis=1) for t in order

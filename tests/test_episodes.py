@@ -4,10 +4,18 @@ Each recorded episode (tools/record_episodes.py: random actions, then the refere
 noise) is replayed open loop in mwjax from mwjax's own reset to the same goal. The yardstick is
 the engine-only baseline (tools/reference_baseline.py): the reference's own code on MuJoCo C 3.17
 started from the recorded reset state, i.e. what changing the engine version alone does to the
-same episodes. mwjax must agree with the reference about as well as that baseline does:
+same episodes. Contact-rich episodes also bifurcate: a push that barely catches an object in one
+run misses it in another. The reference's own sensitivity is the chaos floor: the reference (MuJoCo
+3.3.0) replaying the same episodes with every joint speed of the reset state nudged by 1e-4 rad/s
+(`tools/reference_baseline.py --perturb 1e-4`, run in the reference's venv), about one env step of
+float32 Warp's difference from it (a substep from the same state: 1e-5 rad/s without contacts,
+1e-3 with). mwjax must agree with the reference about as well as these do:
 
 - per-step success agreement at least the baseline's minus `SUCCESS_MARGIN`;
-- the V2 episode return's error at most the baseline's plus `RETURN_MARGIN` (relative);
+- the V2 episode return's error, the median over a task's episodes, at most the larger of the
+  baseline's and the chaos floor's plus `RETURN_MARGIN`. The median, because one bifurcating
+  episode of four decides a mean: in shelf-place's fourth episode the reference places the block
+  and both MuJoCo 3.17 engines (mwjax and the baseline) lose it at the same step;
 - reset states as in test_parity, on this other seed.
 
 `MWJAX_EPISODE_FIXTURES` / `MWJAX_EPISODE_BASELINE` point the suite at another recording (any seed;
@@ -18,8 +26,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from reference import BASELINE, EPISODES, episode_free_run, load_episodes
-from test_parity import OBS_TOL, PHYSICS_IN_RESET_TOL, RECORDED_RESET_TOL, STALE_RESET_OBS
+from reference import BASELINE, EPISODES, PERTURBED, episode_free_run, load_episodes
+from test_parity import assert_reset_matches
 
 from mwjax.tasks import TASKS
 
@@ -42,14 +50,15 @@ def _agreement(ours: np.ndarray, ref: np.ndarray) -> float:
 
 
 def _return_error(ours: np.ndarray, ref: np.ndarray) -> float:
-    """Mean over episodes of |return - reference return| / max(1, |reference return|)."""
+    """Median over episodes of |return - reference return| / max(1, |reference return|)."""
     ours, ref = ours.sum(axis=-1), ref.sum(axis=-1)
-    return float(np.mean(np.abs(ours - ref) / np.maximum(1.0, np.abs(ref))))
+    return float(np.median(np.abs(ours - ref) / np.maximum(1.0, np.abs(ref))))
 
 
 def test_recording_covers_every_task():
     assert set(TASK_NAMES) == set(TASKS)
     assert {p.stem for p in BASELINE.glob("*-v3.npz")} == set(TASK_NAMES)
+    assert {p.stem for p in PERTURBED.glob("*-v3.npz")} == set(TASK_NAMES)
 
 
 @pytest.mark.parametrize("task", TASK_NAMES)
@@ -62,20 +71,18 @@ def test_success_agreement_at_least_baseline(task, free_run):
 
 
 @pytest.mark.parametrize("task", TASK_NAMES)
-def test_return_error_within_baseline(task, free_run):
-    ref, base = load_episodes(EPISODES, task), load_episodes(BASELINE, task)
+def test_return_error_within_baseline_or_chaos_floor(task, free_run):
+    ref = load_episodes(EPISODES, task)
     ours = _return_error(free_run[task]["reward"], ref["reward_v2"])
-    baseline = _return_error(base["reward_v2"], ref["reward_v2"])
-    print(f"{task}: V2 return error mwjax {ours:.4f} baseline {baseline:.4f}")
-    assert ours <= baseline + RETURN_MARGIN
+    baseline = _return_error(load_episodes(BASELINE, task)["reward_v2"], ref["reward_v2"])
+    floor = _return_error(load_episodes(PERTURBED, task)["reward_v2"], ref["reward_v2"])
+    print(f"{task}: V2 return error mwjax {ours:.4f} baseline {baseline:.4f} chaos floor {floor:.4f}")
+    assert ours <= max(baseline, floor) + RETURN_MARGIN
 
 
 @pytest.mark.parametrize("task", TASK_NAMES)
 def test_reset_state_on_this_seed(task, free_run):
-    ref, spec = load_episodes(EPISODES, task), TASKS[task]
-    physics_in_reset = spec.reset_env_steps or spec.settle_per_goal
-    qpos_tol, qvel_tol = PHYSICS_IN_RESET_TOL if physics_in_reset else RECORDED_RESET_TOL
-    np.testing.assert_allclose(free_run[task]["reset_qpos"], ref["reset_qpos"], atol=qpos_tol)
-    np.testing.assert_allclose(free_run[task]["reset_qvel"], ref["reset_qvel"], atol=qvel_tol, rtol=1e-6)
-    err = np.abs(free_run[task]["reset_obs"] - ref["reset_obs"]).max()
-    assert err < STALE_RESET_OBS.get(task, OBS_TOL), f"reset obs error {err:.3g}"
+    ours = free_run[task]
+    assert_reset_matches(
+        task, ours["reset_qpos"], ours["reset_qvel"], ours["reset_obs"], load_episodes(EPISODES, task)
+    )

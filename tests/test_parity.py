@@ -50,17 +50,14 @@ ENGINE_VERSION_DRIFT = {
     # The box starts 2 cm inside the table; 3.3.0's box-box collider reports 1 cm of penetration,
     # 3.17's the full 2 cm, so the box is pushed up faster.
     "hand-insert-v3": 1e-2,
-    # The door starts at its hinge limit, 1 mm inside the door-lock frame. In the reference the frame
-    # is static (weld id 0), so those contacts push the door closed; our frame is a mocap body (its
-    # own weld root), and MuJoCo's parent-child filter drops the contacts.
-    "door-close-v3": 0.1,
-    # Same family, unconfirmed: the lever rests against the moved box, whose parent-child contacts
-    # MuJoCo filters in our scene and not in the reference's; the drift peaks at step 7, then decays.
-    "handle-press-v3": 2e-2,
-    # coffee's reset zeroes qvel[9:15], which in this scene are arm joints (reproduced): the arm,
-    # still settling, is stopped mid-motion and lurches in the first steps (peak at step 3).
-    "coffee-pull-v3": 3e-2,
-    "coffee-push-v3": 3e-2,
+    # The door starts at its hinge limit, 1 mm inside the door-lock frame, whose box-box contacts
+    # push it closed; 3.17's box-box collider returns fewer contacts than 3.3.0's (docs/fidelity.md).
+    "door-close-v3": 5e-2,
+    # The lever rests against the moved box; not isolated further (peak at step 7, then decays).
+    "handle-press-v3": 1e-2,
+    # Their resets (RESET_DEVIATIONS).
+    "door-lock-v3": 1e-2,
+    "door-unlock-v3": 1e-2,
 }
 
 
@@ -69,14 +66,21 @@ def test_every_ported_task_is_recorded_and_covers_mt10():
     assert set(PORTED) == set(TASKS), f"ported without a recording: {sorted(set(TASKS) - set(PORTED))}"
 
 
+# Given-state rewards use mwjax's own episode constants, except where a reset deviates
+# (RESET_DEVIATIONS) and the reward reads the settled hand: with its own `init_tcp`, door-unlock's
+# V2 reward matches on 55% of seed 0's steps (one goal's settling finger strikes the lock, which
+# moves the settled tcp by 7 mm). Its reward kernel is checked with the reference's `init_tcp`.
+REFERENCE_INIT_TCP = ["door-unlock-v3"]
+
+
 @pytest.fixture(scope="module")
 def replay():
-    return replay_recorded_states(PORTED)
+    return replay_recorded_states(PORTED, reference_init_tcp=REFERENCE_INIT_TCP)
 
 
 @pytest.fixture(scope="module")
 def replay_v1():
-    return replay_recorded_states(PORTED, "v1")
+    return replay_recorded_states(PORTED, "v1", reference_init_tcp=REFERENCE_INIT_TCP)
 
 
 @pytest.fixture(scope="module")
@@ -142,19 +146,50 @@ def test_success_v1_given_state(task, replay_v1):
 # free-run step, (qpos, qvel) bounds: box-close and door-lock step 5 substeps inside their reset,
 # and the tasks that settle per goal run the hand's 250-substep settling with the arm touching a
 # fixture (the largest error measured across seeds, rounded up: 3e-4 rad, 7e-3 rad/s).
-PHYSICS_IN_RESET_TOL = (1e-3, 1e-2)
+PHYSICS_IN_RESET_TOL = (1e-4, 1e-3)
 RECORDED_RESET_TOL = (1e-6, 1e-5)
+# Resets that differ more, each with its cause (docs/fidelity.md): (qpos, qvel, obs) bounds, the
+# largest measured over seeds 0, 1, 7 and 11, rounded up.
+RESET_DEVIATIONS = {
+    # MuJoCo 3.17's box-box collider (C and Warp alike) returns 1 contact where 3.3.0's returns 4
+    # when the settling finger strikes the lock; MuJoCo C 3.17 differs from 3.3.0 as much.
+    "door-lock-v3": (3e-2, 3e-1, 1e-2),
+    "door-unlock-v3": (3e-2, 3e-1, 1e-2),
+    # The settling arm strikes the moved box; contacts differ as above (not isolated further).
+    "handle-press-v3": (2e-3, 1e-1, 2e-4),
+    "handle-pull-v3": (2e-3, 1e-1, 2e-4),
+}
+# State that is chaotic in the reference itself while the hand settles (nudging qpos0 by 1e-9
+# changes the plug's spin by 2 rad/s and the nut's orientation by 2e-3): left out of reset checks.
+CHAOTIC_RESET = {
+    "peg-unplug-side-v3": {"qvel": np.r_[12:15]},  # the plug's angular velocity
+    "disassemble-v3": {"qpos": np.r_[12:16], "obs": np.r_[7:11, 25:29]},  # the nut's orientation
+}
 
 
-@pytest.mark.parametrize("task", PORTED)
-def test_reset_state(task, free_run):
-    env, state, _ = free_run
-    kin = env.kinematics(state, task)
+def assert_reset_matches(task: str, qpos: np.ndarray, qvel: np.ndarray, obs: np.ndarray, ref: dict) -> None:
+    """mwjax's reset state and observation `(episodes, ...)` against a recording's."""
     spec = TASKS[task]
     physics_in_reset = spec.reset_env_steps or spec.settle_per_goal
     qpos_tol, qvel_tol = PHYSICS_IN_RESET_TOL if physics_in_reset else RECORDED_RESET_TOL
-    np.testing.assert_allclose(np.asarray(kin.qpos), load(task)["reset_qpos"], atol=qpos_tol)
-    np.testing.assert_allclose(np.asarray(kin.qvel), load(task)["reset_qvel"], atol=qvel_tol, rtol=1e-6)
+    obs_tol = STALE_RESET_OBS.get(task, OBS_TOL)
+    qpos_tol, qvel_tol, obs_tol = RESET_DEVIATIONS.get(task, (qpos_tol, qvel_tol, obs_tol))
+    ours = {"qpos": qpos, "qvel": qvel, "obs": obs}
+    theirs = {"qpos": ref["reset_qpos"], "qvel": ref["reset_qvel"], "obs": ref["reset_obs"]}
+    for name, columns in CHAOTIC_RESET.get(task, {}).items():
+        ours[name], theirs[name] = np.delete(ours[name], columns, -1), np.delete(theirs[name], columns, -1)
+    np.testing.assert_allclose(ours["qpos"], theirs["qpos"], atol=qpos_tol)
+    np.testing.assert_allclose(ours["qvel"], theirs["qvel"], atol=qvel_tol, rtol=1e-6)
+    err = np.abs(ours["obs"] - theirs["obs"]).max()
+    assert err < obs_tol, f"reset obs error {err:.3g}"
+
+
+@pytest.mark.parametrize("task", PORTED)
+def test_reset_state_and_obs(task, free_run):
+    env, state, _ = free_run
+    kin = env.kinematics(state, task)
+    obs = np.asarray(state.obs[env.task_rows(task)])
+    assert_reset_matches(task, np.asarray(kin.qpos), np.asarray(kin.qvel), obs, load(task))
 
 
 _ARM_JOINTS = [f"right_j{i}" for i in range(7)] + ["r_close", "l_close"]
@@ -198,14 +233,6 @@ def test_reset_to_goal_vectors_settles_as_the_goal_variants():
     for ours, theirs in zip(jax.tree.leaves(by_vector), jax.tree.leaves(by_variant), strict=True):
         if jnp.issubdtype(ours.dtype, jnp.floating):
             np.testing.assert_array_equal(np.asarray(ours), np.asarray(theirs))
-
-
-@pytest.mark.parametrize("task", PORTED)
-def test_reset_obs(task, free_run):
-    env, state, _ = free_run
-    ours = np.asarray(state.obs[env.task_rows(task)])
-    err = np.abs(ours - load(task)["reset_obs"]).max()
-    assert err < STALE_RESET_OBS.get(task, OBS_TOL), f"reset obs error {err:.3g}"
 
 
 @pytest.mark.parametrize("task", PORTED)

@@ -73,7 +73,12 @@ def v330_defaults(model) -> None:
 
 
 def replay_task(
-    fixture: dict, task: str, how: str, own_defaults: bool = False, warmstart: bool = True
+    fixture: dict,
+    task: str,
+    how: str,
+    own_defaults: bool = False,
+    warmstart: bool = True,
+    perturb: float = 0.0,
 ) -> dict:
     fmeta = json.loads(str(fixture["meta"]))
     assert fmeta["task_name"] == task
@@ -128,7 +133,8 @@ def replay_task(
                     }
                 )
             # the fixture's reset state
-            e.set_state(qpos0, qvel0)  # -> mj_forward
+            # --perturb: the reference's own sensitivity, every joint speed nudged by `perturb`
+            e.set_state(qpos0, qvel0 + perturb)  # -> mj_forward
             if warmstart:
                 e.data.qacc_warmstart[:] = fixture["reset_qacc_warmstart"][r]
             e._prev_obs = prev_obs0.copy()
@@ -191,6 +197,13 @@ def main(argv=None) -> int:
         action="store_true",
         help="do not restore the fixture's reset qacc_warmstart (keep what mj_forward leaves)",
     )
+    p.add_argument(
+        "--perturb",
+        type=float,
+        default=0.0,
+        help="add this to every joint speed of the reset state (run on 3.3.0: the reference's own "
+        "chaos floor, e.g. 1e-6)",
+    )
     args = p.parse_args(argv)
 
     if args.tasks == ["all"]:
@@ -206,7 +219,7 @@ def main(argv=None) -> int:
     for task in tasks:
         with np.load(os.path.join(args.fixtures, f"{task}.npz")) as z:
             fixture = {k: z[k] for k in z.files}
-        out = replay_task(fixture, task, how, args.own_engine_defaults, not args.qpos_qvel_only)
+        out = replay_task(fixture, task, how, args.own_engine_defaults, not args.qpos_qvel_only, args.perturb)
         path = os.path.join(args.out, f"{task}.npz")
         np.savez_compressed(path, **out)
         size = os.path.getsize(path)

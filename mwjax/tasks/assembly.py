@@ -96,10 +96,9 @@ ASSEMBLY = TaskSpec(
     rand_vec_valid=_nut_peg_apart,
 )
 
-# Reference quirk, not reproduced: the reference's nut settles during _reset_hand against the peg
-# where the previous episode left it (model.body_pos persists across resets), so its quaternion,
-# which _set_obj_xyz keeps, depends on the episode history. Every episode here starts from the
-# recorded first episode's settled nut.
+# The nut settles during _reset_hand against the peg, already at this episode's goal, so its
+# quaternion, which _set_obj_xyz keeps, depends on the goal (settled per goal). It is chaotic in
+# the reference itself (docs/fidelity.md).
 DISASSEMBLE = TaskSpec(
     name="disassemble-v3",
     settle_per_goal=True,

@@ -96,10 +96,9 @@ def _unplug_constants(frame: Frame, placement: Placement, settled: Frame) -> dic
     }
 
 
-# Reference quirk, not reproduced: the plug settles during _reset_hand against the box where the
-# previous episode left it (model.body_pos persists across resets), so the angular velocity the
-# reset keeps depends on the episode history. Every episode here starts from the recorded first
-# episode's settled plug.
+# The plug settles during _reset_hand jammed against the box, already at this episode's goal, so
+# the angular velocity that the reset keeps depends on the goal (settled per goal). It is chaotic
+# in the reference itself (docs/fidelity.md).
 PEG_UNPLUG_SIDE = TaskSpec(
     name="peg-unplug-side-v3",
     settle_per_goal=True,

@@ -428,9 +428,13 @@ class Env:
         cursor = jax.vmap(lambda k, n: jax.random.randint(k, (), 0, n))(split[:, 0], self._goal_pool_sizes)
         return cursor.astype(jnp.int32), split[:, 1]
 
-    def _start(self, order: Array, cursor: Array, keys: Array) -> State:
+    def _goals(self, order: Array, cursor: Array) -> tuple[Array, Array]:
+        """Each env's goal variant at `cursor` in its `order`, and that variant's vector."""
         variant = jnp.take_along_axis(order, cursor[:, None], axis=1)[:, 0]
-        rand_vecs = self._variants[jnp.asarray(self.task_ids), variant]
+        return variant, self._variants[jnp.asarray(self.task_ids), variant]
+
+    def _start(self, order: Array, cursor: Array, keys: Array) -> State:
+        variant, rand_vecs = self._goals(order, cursor)
         all_rows = jnp.ones(self.num_envs, bool)
         return self._reset_rows(self.physics.make_data(), rand_vecs, variant, order, cursor, keys, all_rows)
 
@@ -662,8 +666,7 @@ class Env:
         cursor, keys = state.goal_cursor, state.key
         if self.goal_sampling == "on_reset":
             cursor, keys = self._draw_cursor(keys)
-        variant = jnp.take_along_axis(state.goal_order, cursor[:, None], axis=1)[:, 0]
-        rand_vecs = self._variants[jnp.asarray(self.task_ids), variant]
+        variant, rand_vecs = self._goals(state.goal_order, cursor)
         return self._reset_rows(state.physics, rand_vecs, variant, state.goal_order, cursor, keys, done)
 
     def _autoreset(self, state: State, done: Array) -> State:

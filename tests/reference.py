@@ -19,7 +19,7 @@ import mwjax
 # seed, all tasks) to run the parity suite on it.
 # Whole recorded episodes (tools/record_episodes.py), the engine-only baseline on them and the
 # reference's own replay from a nudged start (tools/reference_baseline.py, without and with
-# --perturb 1e-6); the variables point the suite at a fresh recording.
+# --perturb 1e-4); the variables point the suite at a fresh recording.
 EPISODES = Path(os.environ.get("MWJAX_EPISODE_FIXTURES", Path(__file__).parent / "fixtures" / "episodes"))
 BASELINE = Path(
     os.environ.get("MWJAX_EPISODE_BASELINE", Path(__file__).parent / "fixtures" / "episodes_baseline")
@@ -32,10 +32,8 @@ FIXTURES = Path(os.environ.get("MWJAX_REFERENCE_FIXTURES", Path(__file__).parent
 
 @functools.cache
 def load(task: str) -> dict:
-    with np.load(FIXTURES / f"{task}.npz") as archive:
-        arrays = {key: archive[key] for key in archive.files}
-    arrays["meta"] = json.loads(str(arrays["meta"]))
-    return arrays
+    """One task's parity recording (tools/record_reference.py)."""
+    return load_episodes(FIXTURES, task)
 
 
 def recorded_tasks() -> list[str]:
@@ -116,7 +114,8 @@ def replay_recorded_states(
 
 
 def load_episodes(directory: Path, task: str) -> dict:
-    """One task's recorded episodes (tools/record_episodes.py) or baseline (tools/reference_baseline.py)."""
+    """One task's recording in `directory`, its JSON `meta` decoded: parity fixtures, episodes
+    (tools/record_episodes.py) or a baseline (tools/reference_baseline.py)."""
     with np.load(directory / f"{task}.npz") as archive:
         arrays = {key: archive[key] for key in archive.files}
     arrays["meta"] = json.loads(str(arrays["meta"]))

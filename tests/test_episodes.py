@@ -18,8 +18,9 @@ float32 Warp's difference from it (a substep from the same state: 1e-5 rad/s wit
   and both MuJoCo 3.17 engines (mwjax and the baseline) lose it at the same step;
 - reset states as in test_parity, on this other seed.
 
-`MWJAX_EPISODE_FIXTURES` / `MWJAX_EPISODE_BASELINE` point the suite at another recording (any seed;
-see tools/README_reference.md), e.g. one made fresh to check unseen goals.
+`MWJAX_EPISODE_FIXTURES`, `MWJAX_EPISODE_BASELINE` and `MWJAX_EPISODE_PERTURBED` point the suite at
+another recording (any seed; see tools/README_reference.md), e.g. one made fresh to check unseen
+goals.
 """
 
 from __future__ import annotations

@@ -21,7 +21,7 @@ from pathlib import Path
 
 import jax
 import numpy as np
-from throughput import commit, rows_arg, tasks_arg
+from common import commit, rows_arg, tasks_arg
 
 import mwjax
 from mwjax import policies

@@ -27,8 +27,8 @@ import jax
 import mujoco.mjx.third_party.mujoco_warp as mjw
 import numpy as np
 import warp as wp
+from common import commit, rows_arg
 from mujoco.mjx.third_party.mujoco_warp._src import smooth, warp_util
-from throughput import commit, rows_arg
 
 import mwjax
 from mwjax.physics import warp_model

@@ -600,7 +600,7 @@ def main() -> None:
     parser.add_argument("--out", default=None, help="result stem (default: benchmarks/results/train-...)")
     args = parser.parse_args()
 
-    from throughput import commit
+    from common import commit
 
     runs = []
     for seed in args.seeds:

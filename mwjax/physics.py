@@ -12,12 +12,14 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import warnings
 from collections.abc import Callable, Sequence
 from typing import Literal
 
 import jax
 import jax.numpy as jnp
 import mujoco
+import numpy as np
 import warp
 from mujoco import mjx
 from mujoco.mjx.third_party.mujoco_warp import OverflowType
@@ -31,6 +33,19 @@ warp_equality.install()
 # The `Physics.overflow` flags of buffers whose excess Warp drops (convex-collider pairs,
 # constraint rows, contacts); the other flags are limits reached (solver, EPA horizon).
 DROPPED = OverflowType.CCD | OverflowType.NEFC | OverflowType.BROADPHASE | OverflowType.NARROWPHASE
+
+# For each dropping buffer: what it holds, and the `PhysicsConfig` field that sizes it.
+_BUFFERS = {
+    OverflowType.NEFC: ("constraint rows", "constraints_per_env"),
+    OverflowType.CCD: ("convex-collider pairs", "ccd_pairs_per_env"),
+    OverflowType.BROADPHASE: ("contact candidates", "contacts_per_env"),
+    OverflowType.NARROWPHASE: ("contacts", "contacts_per_env"),
+}
+
+
+class PhysicsOverflowWarning(RuntimeWarning):
+    """Warp dropped contacts, constraint rows or collider pairs in some env: its physics left the
+    reference's from that step on (`info["physics_overflow"]` says which envs and when)."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -63,17 +78,6 @@ class PhysicsConfig:
     # "box_box": Warp's port of MuJoCo C's `mjc_BoxBox` (C's collider, see `warp_model`);
     # "convex": Warp's general convex collider (GJK/EPA), MJX-Warp's own default.
     box_box_collider: str = "box_box"
-    # False runs each scene's substeps as a device loop, so the step program holds one traced
-    # physics call per scene instead of `substeps`: a shorter lowering and a faster compile on
-    # the CPU, none on the GPU.
-    unroll_substeps: bool = True
-    # True traces each scene's `mjx.step` and `mjx.kinematics` once (a jitted function per scene,
-    # called at every site: substeps, the autoreset branch, resets that step), so the step
-    # program is traced and lowered with 72 physics calls for MT50 instead of 264. The calls
-    # then share Warp call ids, and Warp keys its captured CUDA graphs by call id and buffers:
-    # with 64 CCD slots per env this ran out of GPU memory inside Warp. With the per-scene slots
-    # it ran, lowering in half the time, but the step's compile is the cache read's (README).
-    share_traces: bool = False
 
     def __post_init__(self) -> None:
         rows = self.constraints_per_env
@@ -88,11 +92,6 @@ class PhysicsConfig:
                 f"{self.contacts_per_env}], not {pairs!r}"
             )
         _graph_mode(self.graph_mode)
-
-    @classmethod
-    def fast(cls) -> PhysicsConfig:
-        """Opt-in speed preset (not the reference's physics): fewer solver iterations."""
-        return cls(iterations=10, ls_iterations=10)
 
 
 @jax.tree_util.register_dataclass
@@ -136,12 +135,15 @@ class PhysicsState:
     cdof_dot: jax.Array
     # Warp's `OverflowType` flags raised in the last `Physics.step` (`Physics.overflow`).
     overflow: jax.Array
+    # Constraint rows the last step needed (the most over its substeps), allocated or not: what
+    # sizing `PhysicsConfig.constraints_per_env` needs (`Physics.constraint_rows_needed`).
+    rows_needed: jax.Array
 
     def replace(self, **changes: jax.Array) -> PhysicsState:
         return dataclasses.replace(self, **changes)
 
 
-_FIELDS = tuple(f.name for f in dataclasses.fields(PhysicsState) if f.name != "overflow")
+_FIELDS = tuple(f.name for f in dataclasses.fields(PhysicsState) if f.name not in ("overflow", "rows_needed"))
 
 
 @dataclasses.dataclass(frozen=True)
@@ -171,10 +173,12 @@ class Physics:
                     start=start,
                     size=size,
                     model=_configured(load_scene(scene, mocap_bodies), config),
-                    device_model=mjx.put_model(
-                        warp_model(scene, mocap_bodies, config),
-                        impl="warp",
-                        graph_mode=_graph_mode(config.graph_mode),
+                    device_model=_without_console_warnings(
+                        mjx.put_model(
+                            warp_model(scene, mocap_bodies, config),
+                            impl="warp",
+                            graph_mode=_graph_mode(config.graph_mode),
+                        )
                     ),
                 )
             )
@@ -182,15 +186,14 @@ class Physics:
         self.groups: tuple[SceneGroup, ...] = tuple(groups)
         # The model is closed over, not a vmap argument: as an argument, every call hashes all
         # of its NumPy fields (meshes included) while tracing.
-        share = jax.jit if config.share_traces else _as_is
-        self._substep = tuple(share(jax.vmap(functools.partial(mjx.step, g.device_model))) for g in groups)
-        self._kinematics = tuple(
-            share(jax.vmap(functools.partial(mjx.kinematics, g.device_model))) for g in groups
-        )
+        self._substep = tuple(jax.vmap(functools.partial(mjx.step, g.device_model)) for g in groups)
+        self._kinematics = tuple(jax.vmap(functools.partial(mjx.kinematics, g.device_model)) for g in groups)
         # Every step rebuilds each scene's whole data from `mjx.make_data`; traced afresh at each
-        # of MT50's ~100 sites that took 40 s of the step's lowering on the H200. Jitted, it is
-        # traced once per scene. (It makes no Warp call, so none of `share_traces`' concerns.)
+        # of MT50's ~100 call sites it dominated the step's lowering. Jitted, it is traced once
+        # per scene (it makes no Warp call, so sharing its trace shares no captured graph).
         self._made: dict[tuple[int, int], Callable[[], mjx.Data]] = {}
+        # (scene, buffer) pairs already warned about: one warning each per `Physics`.
+        self._warned: set[tuple[str, OverflowType]] = set()
 
     def make_data(self) -> tuple[PhysicsState, ...]:
         """Fresh batched states (the scene's qpos0, poses not yet computed), one per group."""
@@ -241,26 +244,59 @@ class Physics:
 
     def step(self, states: tuple[PhysicsState, ...]) -> tuple[PhysicsState, ...]:
         """`substeps` physics steps, then kinematics so positions describe the new state. The
-        overflow flags of the result are those this step raised."""
-        return tuple(
+        overflow flags of the result are those this step raised; a buffer that dropped something
+        in a scene for the first time raises a `PhysicsOverflowWarning` on the host."""
+        stepped = tuple(
             self.step_group(g, state.replace(overflow=jnp.zeros_like(state.overflow)))
             for g, state in enumerate(states)
         )
+        self._warn_on_overflow(stepped)
+        return stepped
 
     def step_group(self, g: int, state: PhysicsState, fresh_poses: bool = True) -> PhysicsState:
         """`step` for group `g` alone (a batch of any size). `fresh_poses=False` leaves the poses
         as MuJoCo C's `mj_step` does, computed before the last substep's integration."""
         step = self._substep[g]
         data = self.data(g, state)
-        # Unrolled by default. The loop (`unroll_substeps=False`) halves MT50's warm compile on
-        # the CPU but not on the H200: 74 s there, and 1.04-1.05M env steps/s against 1.08-1.11M
-        # unrolled (README, Compile).
-        if self.config.unroll_substeps:
-            for _ in range(self.config.substeps):
-                data = step(data)
-        else:
-            data = jax.lax.fori_loop(0, self.config.substeps, lambda _, d: step(d), data)
-        return _carried(self._kinematics[g](data) if fresh_poses else data)
+        rows = jnp.zeros_like(state.rows_needed)
+        for _ in range(self.config.substeps):
+            data = step(data)
+            rows = jnp.maximum(rows, data._impl.nefc)
+        return _carried(self._kinematics[g](data) if fresh_poses else data, rows)
+
+    def constraint_rows_needed(self, states: tuple[PhysicsState, ...]) -> jax.Array:
+        """Per env (rows in batch order), the constraint rows the last `step` needed at its peak,
+        whether or not `PhysicsConfig.constraints_per_env` allocated that many."""
+        return jnp.concatenate([state.rows_needed for state in states])
+
+    def _warn_on_overflow(self, states: tuple[PhysicsState, ...]) -> None:
+        # Warp's own warning is a `printf` per world and substep from inside its kernels (turned
+        # off in `_without_console_warnings`); this is one host callback, run only in a step
+        # where some env dropped something.
+        flags = jnp.stack([jax.lax.reduce(s.overflow, np.int32(0), jax.lax.bitwise_or, (0,)) for s in states])
+        dropped = jnp.any((flags & int(DROPPED)) != 0)
+        jax.lax.cond(dropped, lambda f: jax.debug.callback(self._warn, f), lambda f: None, flags)
+
+    def _warn(self, flags: np.ndarray) -> None:
+        for group, bits in zip(self.groups, np.asarray(flags), strict=True):
+            for flag, (what, setting) in _BUFFERS.items():
+                if not bits & flag or (group.scene, flag) in self._warned:
+                    continue
+                self._warned.add((group.scene, flag))
+                allocated = {
+                    "constraints_per_env": f"{self.constraint_rows(group.scene)} per env",
+                    "ccd_pairs_per_env": f"{self.ccd_pairs(group.scene)} per env",
+                    "contacts_per_env": f"{self.config.contacts_per_env} per env",
+                }[setting]
+                # Raised from a host callback: no user frame to point at, hence explicit.
+                warnings.warn_explicit(
+                    f"Warp ran out of {what} in scene {group.scene} ({allocated}) and dropped the "
+                    f"excess: those envs no longer follow the reference's physics. Raise "
+                    f"mwjax.PhysicsConfig({setting}=...); info['physics_overflow'] flags the envs.",
+                    PhysicsOverflowWarning,
+                    filename="mwjax.physics",
+                    lineno=0,
+                )
 
     def overflow(self, states: tuple[PhysicsState, ...]) -> jax.Array:
         """Per env (rows in batch order), the `OverflowType` flags Warp raised in the last `step`
@@ -287,13 +323,20 @@ def warp_model(scene: str, mocap_bodies: tuple[str, ...], config: PhysicsConfig)
     return model
 
 
-def _carried(data: mjx.Data) -> PhysicsState:
-    # MJX has no public accessor for Warp's overflow flags, hence the private field.
-    return PhysicsState(**{name: getattr(data, name) for name in _FIELDS}, overflow=data._impl.overflow)
+def _carried(data: mjx.Data, rows_needed: jax.Array | None = None) -> PhysicsState:
+    # MJX has no public accessor for Warp's overflow flags and row counts, hence the private field.
+    return PhysicsState(
+        **{name: getattr(data, name) for name in _FIELDS},
+        overflow=data._impl.overflow,
+        rows_needed=data._impl.nefc if rows_needed is None else rows_needed,
+    )
 
 
-def _as_is(fn: Callable) -> Callable:
-    return fn
+def _without_console_warnings(model: mjx.Model) -> mjx.Model:
+    """The model with Warp's in-kernel overflow printing off (`Physics.step` warns once instead).
+    Warp still raises the flags; the setting only selects a kernel variant without `printf`."""
+    opt = model.opt
+    return model.replace(opt=opt.replace(_impl=opt._impl.replace(warn_overflow=0)))
 
 
 def _graph_mode(name: str | None) -> warp.JaxCallableGraphMode | None:

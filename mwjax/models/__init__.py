@@ -120,13 +120,21 @@ def _without_visual_meshes(spec: mujoco.MjSpec) -> mujoco.MjModel:
     return model
 
 
+# Head room over the stress corpus's peak: the corpus saw ~1.5M env steps per task; rarer states
+# may need more rows, and a row short of them is a dropped contact.
+STRESS_MARGIN = 1.25
+
+
 def constraint_rows(scene: str) -> int:
-    """Constraint rows to allocate per env of `scene`: twice the most MuJoCo C reached in it
-    under the reference's experts and under random actions (`constraint_rows.json`, recorded by
-    `tools/reference_constraint_rows.py`), in multiples of 32, at least 128. Warp launches much
+    """Constraint rows to allocate per env of `scene`, in multiples of 32, at least 128: twice the
+    most MuJoCo C reached in it under the reference's experts and random actions
+    (`constraint_rows.json`, `tools/reference_constraint_rows.py`), or a quarter more than the
+    most any env needed under the stress policies of `benchmarks/stress_buffers.py` (whole
+    episodes at 1,024 envs per task: `stress_rows.json`), whichever is larger. Warp launches much
     of its constraint work over every allocated row, used or not, and drops rows that overflow."""
     recorded = _recorded(scene, "constraint rows", "constraints_per_env")
-    return max(128, 32 * math.ceil(2 * recorded["max_rows"] / 32))
+    stressed = _recorded_stress_rows().get(scene, {}).get("peak_rows", 0)
+    return max(128, 32 * math.ceil(max(2 * recorded["max_rows"], STRESS_MARGIN * stressed) / 32))
 
 
 def ccd_pairs(scene: str) -> int:
@@ -143,6 +151,12 @@ def _recorded(scene: str, what: str, setting: str) -> dict:
     if scene not in table:
         raise ValueError(f"no recorded {what} for scene {scene!r}; set {setting}")
     return table[scene]
+
+
+@functools.cache
+def _recorded_stress_rows() -> dict[str, dict]:
+    path = MODELS_DIR / "stress_rows.json"
+    return json.loads(path.read_text())["scenes"] if path.exists() else {}
 
 
 @functools.cache

@@ -1,0 +1,70 @@
+"""What the benchmark scripts share: a run's provenance (device, commit, date, command), task-set
+and buffer arguments as the command line spells them, and where results go."""
+
+from __future__ import annotations
+
+import datetime
+import os
+import platform
+import shlex
+import subprocess
+import sys
+from pathlib import Path
+
+import jax
+
+from mwjax.tasks import TASKS
+
+RESULTS = Path(__file__).parent / "results"
+
+
+def commit() -> str:
+    """The commit measured: `MWJAX_COMMIT` where the checkout has no `.git` (a copied tree)."""
+    if os.environ.get("MWJAX_COMMIT"):
+        return os.environ["MWJAX_COMMIT"]
+    try:
+        return subprocess.run(
+            ["git", "rev-parse", "HEAD"], capture_output=True, text=True, check=True
+        ).stdout.strip()
+    except (OSError, subprocess.CalledProcessError):
+        return "unknown"
+
+
+def device_name() -> str:
+    device = jax.devices()[0]
+    return getattr(device, "device_kind", str(device))
+
+
+def provenance() -> dict:
+    """Where, when and how a result was measured: every result file starts with this."""
+    device = jax.devices()[0]
+    return {
+        "device": device_name(),
+        "platform": device.platform,
+        "host": platform.node(),
+        "commit": commit(),
+        "date": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
+        "command": shlex.join(["python", *sys.argv]),
+        "jax": jax.__version__,
+        "xla_mem_fraction": os.environ.get("XLA_PYTHON_CLIENT_MEM_FRACTION"),
+    }
+
+
+def result_path(kind: str, name: str, suffix: str) -> Path:
+    """`benchmarks/results/<kind>/<name>-<commit>-<device>-<date><suffix>`."""
+    date = datetime.date.today().isoformat()
+    stem = f"{name}-{commit()[:7]}-{device_name().replace(' ', '_')}-{date}"
+    path = RESULTS / kind / f"{stem}{suffix}"
+    path.parent.mkdir(parents=True, exist_ok=True)
+    return path
+
+
+def tasks_arg(text: str) -> str | list[str]:
+    """A set as `mwjax.make` takes it: a set name, or task names separated by commas (one task
+    alone runs as a one-task set)."""
+    return text.split(",") if "," in text or text in TASKS else text
+
+
+def rows_arg(text: str) -> int | str:
+    """A buffer size on the command line: a count per env, or "per_scene"."""
+    return text if text == "per_scene" else int(text)

@@ -22,10 +22,13 @@ import mujoco
 import numpy as np
 import warp
 from mujoco import mjx
-from mujoco.mjx.third_party.mujoco_warp import OverflowType
+from mujoco.mjx.third_party.mujoco_warp import GeomType, OverflowType
+
+# Which geom-type pairs Warp collides without its convex collider; no public accessor.
+from mujoco.mjx.third_party.mujoco_warp._src.collision_primitive import _PRIMITIVE_COLLISIONS
 
 from mwjax import warp_equality, warp_streams
-from mwjax.models import ccd_pairs, constraint_rows, load_scene
+from mwjax.models import constraint_rows, load_scene
 
 warp_streams.install()
 warp_equality.install()
@@ -64,11 +67,11 @@ class PhysicsConfig:
     contacts_per_env: int = 64
     constraints_per_env: int | Literal["per_scene"] = "per_scene"
     # Slots of scratch for Warp's convex collider (GJK/EPA), pooled over a scene's batch for each
-    # pair of geom types: one per geom pair that it finds in contact (`naccdmax`); a pair past
-    # the last slot is dropped (`Physics.overflow` says so). Warp allocates ~7.5 KB per slot in
-    # every collision call, outside JAX's memory. MJX's default is one slot per contact (64 per
-    # env, ~480 KB per env); "per_scene" gives each scene twice the most such pairs MuJoCo C had
-    # in contact at once (`mwjax.models.ccd_pairs`): 4 to 32.
+    # pair of geom types: Warp takes one for every geom pair of those types whose bounding boxes
+    # overlap, and drops the pairs past the last slot (`Physics.overflow` says so). "per_scene"
+    # gives each scene as many per env as it has candidate pairs of its busiest convex type pair
+    # (`convex_candidates`), so that no env can run out whatever the others do; at most
+    # `contacts_per_env`. Each slot is ~7.5 KB of Warp scratch per collision call.
     ccd_pairs_per_env: int | Literal["per_scene"] = "per_scene"
     # Who captures the CUDA graphs of a Warp step: None is MJX's choice ("warp" on GPU: Warp
     # captures each call and replays it for the same buffer addresses), "jax" lets XLA record the
@@ -239,7 +242,9 @@ class Physics:
         """Convex-collider slots allocated per env of `scene`, at most `contacts_per_env`."""
         pairs = self.config.ccd_pairs_per_env
         if pairs == "per_scene":
-            return min(ccd_pairs(scene), self.config.contacts_per_env)
+            group = next(g for g in self.groups if g.scene == scene)
+            candidates = convex_candidates(group.device_model, self.config.box_box_collider)
+            return max(1, min(candidates, self.config.contacts_per_env))
         return pairs
 
     def step(self, states: tuple[PhysicsState, ...]) -> tuple[PhysicsState, ...]:
@@ -321,6 +326,28 @@ def warp_model(scene: str, mocap_bodies: tuple[str, ...], config: PhysicsConfig)
     if config.box_box_collider == "box_box":
         model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_NATIVECCD
     return model
+
+
+def convex_candidates(device_model: mjx.Model, box_box_collider: str) -> int:
+    """The most geom pairs of one pair of geom types that Warp can send to its convex collider in
+    one env of the model: its candidate pairs (after contype/conaffinity, parent and exclude
+    filtering) of each type pair that no primitive collider takes, counted by Warp itself
+    (`geom_pair_type_count`, indexed like Warp's upper-triangular type-pair table)."""
+    primitive = set(_PRIMITIVE_COLLISIONS)
+    if box_box_collider == "convex":
+        primitive.discard((GeomType.BOX, GeomType.BOX))
+    counts = device_model._impl.geom_pair_type_count
+    n = len(GeomType)
+    convex = [t for t in GeomType if t.value < n and t not in (GeomType.PLANE, GeomType.HFIELD, GeomType.SDF)]
+    return max(
+        (
+            int(counts[i * (2 * n - i - 1) // 2 + j])
+            for a in convex
+            for b in convex
+            if (i := a.value) <= (j := b.value) and (a, b) not in primitive
+        ),
+        default=0,
+    )
 
 
 def _carried(data: mjx.Data, rows_needed: jax.Array | None = None) -> PhysicsState:

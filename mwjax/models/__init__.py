@@ -137,14 +137,6 @@ def constraint_rows(scene: str) -> int:
     return max(128, 32 * math.ceil(max(2 * recorded["max_rows"], STRESS_MARGIN * stressed) / 32))
 
 
-def ccd_pairs(scene: str) -> int:
-    """Slots per env of `scene` for Warp's convex collider (GJK/EPA): twice the most geom pairs of
-    one pair of geom types that MuJoCo C had in contact at once and that Warp sends to that
-    collider, under the reference's experts and random actions (`constraint_rows.json`), at
-    least 4. Warp takes one slot per such pair and drops the pairs past the last slot."""
-    return max(4, 2 * _recorded(scene, "contact pairs", "ccd_pairs_per_env")["max_ccd_pairs"])
-
-
 def _recorded(scene: str, what: str, setting: str) -> dict:
     """The scene's entry in `constraint_rows.json`; a scene without one needs `setting` set."""
     table = _recorded_constraint_rows()

@@ -83,6 +83,27 @@ def stress_actions(env: mwjax.Env) -> Callable:
     return act
 
 
+def record(table: dict, scenes: dict, args: argparse.Namespace, result: dict) -> None:
+    """Merge this run's per-scene, per-policy peaks into `stress_rows.json` (the most seen by any
+    run: runs at other batch sizes or on other devices add to the corpus, never shrink it)."""
+    path = MODELS_DIR / "stress_rows.json"
+    recorded = json.loads(path.read_text()) if path.exists() else {"scenes": {}, "sources": []}
+    for name, scene in scenes.items():
+        entry = recorded["scenes"].setdefault(name, {"peak_rows": 0, "by_policy": {}, "tasks": []})
+        for policy in args.policies:
+            peak = max(table[task][policy]["peak_rows"] for task in scene["tasks"])
+            entry["by_policy"][policy] = max(entry["by_policy"].get(policy, 0), peak)
+        entry["peak_rows"] = max(entry["by_policy"].values())
+        entry["tasks"] = sorted(set(entry["tasks"]) | set(scene["tasks"]))
+    recorded["sources"].append(
+        f"{result['command']}: {args.envs_per_task} envs per task, {args.steps} steps, policies "
+        f"{', '.join(args.policies)}, {result['device']}, commit {result['commit'][:7]}, "
+        f"{result['date'][:10]}"
+    )
+    path.write_text(json.dumps(recorded, indent=1, sort_keys=True) + "\n")
+    print(f"-> {path}")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--set", default="MT50", help="a set name, or task names separated by commas")
@@ -185,17 +206,7 @@ def main() -> None:
     print("\n".join(lines))
     print(f"-> {out} (.md)")
     if args.record:
-        path = MODELS_DIR / "stress_rows.json"
-        recorded = json.loads(path.read_text()) if path.exists() else {"scenes": {}}
-        for name, scene in scenes.items():
-            recorded["scenes"][name] = {"peak_rows": scene["peak_rows"], "tasks": sorted(set(scene["tasks"]))}
-        recorded["source"] = (
-            f"benchmarks/stress_buffers.py, {args.envs_per_task} envs per task, {args.steps} steps, "
-            f"policies {', '.join(args.policies)}, {result['device']}, commit {result['commit'][:7]}, "
-            f"{result['date'][:10]}"
-        )
-        path.write_text(json.dumps(recorded, indent=1, sort_keys=True) + "\n")
-        print(f"-> {path}")
+        record(table, scenes, args, result)
     if dropped:
         raise SystemExit(f"envs dropped contacts, rows or collider pairs in: {', '.join(dropped)}")
 

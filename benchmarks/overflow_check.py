@@ -1,6 +1,6 @@
 """Which of Warp's overflow flags a rollout raises, per task: does any env drop contacts,
 constraint rows or convex-collider pairs (the `PhysicsConfig` buffers) under the experts or
-under random actions? Writes a Markdown table to `benchmarks/results/`.
+under random actions? Writes a Markdown table to `benchmarks/results/overflow/`.
 
     python benchmarks/overflow_check.py --set MT50 --envs-per-task 1 --steps 200 --policy expert
 
@@ -24,7 +24,7 @@ import mwjax
 from mwjax import policies
 from mwjax.physics import DROPPED
 
-RESULTS = Path(__file__).parent / "results"
+RESULTS = Path(__file__).parent / "results" / "overflow"
 
 
 def flag_names(bits: int) -> str:

@@ -33,7 +33,7 @@ from throughput import commit, rows_arg
 import mwjax
 from mwjax.physics import warp_model
 
-RESULTS = Path(__file__).parent / "results"
+RESULTS = Path(__file__).parent / "results" / "profile"
 
 
 @wp.kernel

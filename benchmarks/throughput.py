@@ -50,7 +50,7 @@ from mwjax.benchmarks import task_names
 from mwjax.tasks import TASKS
 from mwjax.wrappers.gymnasium import make_vector
 
-RESULTS = Path(__file__).parent / "results"
+RESULTS = Path(__file__).parent / "results" / "throughput"
 
 
 def gpu_memory_used_mib() -> float | None:

@@ -16,6 +16,8 @@ from __future__ import annotations
 import argparse
 import datetime
 import json
+import shlex
+import sys
 import time
 from pathlib import Path
 
@@ -114,6 +116,7 @@ def main() -> None:
         "device": getattr(device, "device_kind", str(device)),
         "commit": commit(),
         "date": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
+        "command": shlex.join(["python", *sys.argv]),
         "set": args.set,
         "physics": str(physics),
         "seed": args.seed,

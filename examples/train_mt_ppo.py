@@ -23,6 +23,10 @@ import dataclasses
 import datetime
 import json
 import math
+import os
+import shlex
+import subprocess
+import sys
 import time
 from pathlib import Path
 from typing import Any, Literal, NamedTuple
@@ -565,6 +569,18 @@ def _plot(runs: list[dict], path: Path) -> None:
     fig.savefig(path, dpi=120)
 
 
+def _commit() -> str:
+    """The repository's HEAD (or $MWJAX_COMMIT), recorded with the results."""
+    if os.environ.get("MWJAX_COMMIT"):
+        return os.environ["MWJAX_COMMIT"]
+    try:
+        return subprocess.run(
+            ["git", "rev-parse", "HEAD"], capture_output=True, text=True, check=True
+        ).stdout.strip()
+    except (OSError, subprocess.CalledProcessError):
+        return "unknown"
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     defaults = Config()
@@ -602,8 +618,6 @@ def main() -> None:
     )
     args = parser.parse_args()
 
-    from throughput import commit
-
     runs = []
     for seed in args.seeds:
         config = Config(
@@ -631,8 +645,9 @@ def main() -> None:
     device = jax.devices()[0]
     summary = {
         "device": getattr(device, "device_kind", str(device)),
-        "commit": commit(),
+        "commit": _commit(),
         "date": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
+        "command": shlex.join(["python", *sys.argv]),
         "eval_success": [r["eval_success"] for r in runs],
         "runs": runs,
     }

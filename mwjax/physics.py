@@ -43,9 +43,10 @@ class PhysicsConfig:
     ls_iterations: int | None = None
     # Contact and constraint buffers. Warp preallocates them and drops what overflows (flagged
     # in `Physics.overflow`). Contacts are pooled over the batch; constraint rows are per env.
-    # Warp's cost grows with the rows allocated (benchmarks/results/throughput-buffers-9a338f8-…
-    # md) and every step refills them (`PhysicsState`): "per_scene" gives each scene twice the
-    # rows MuJoCo C reaches in it (`mwjax.models.constraint_rows`, 128-448 instead of 512).
+    # Warp assembles and solves over every allocated row, used or not, and every step refills
+    # them (`PhysicsState`), so unused rows cost time: "per_scene" gives each scene twice the
+    # rows MuJoCo C reaches in it (`mwjax.models.constraint_rows`, 128-448 instead of 512;
+    # docs/performance.md).
     contacts_per_env: int = 64
     constraints_per_env: int | Literal["per_scene"] = "per_scene"
     # Slots of scratch for Warp's convex collider (GJK/EPA), pooled over a scene's batch for each
@@ -70,9 +71,10 @@ class PhysicsConfig:
     # True traces each scene's `mjx.step` and `mjx.kinematics` once (a jitted function per scene,
     # called at every site: substeps, the autoreset branch, resets that step), so the step
     # program is traced and lowered with 72 physics calls for MT50 instead of 264. The calls
-    # then share Warp call ids, and Warp keys its captured CUDA graphs by call id and buffers:
-    # with 64 CCD slots per env this ran out of GPU memory inside Warp. With the per-scene slots
-    # it ran, lowering in half the time, but the step's compile is the cache read's (README).
+    # then share Warp call ids, and Warp keys its captured CUDA graphs (and the scratch they
+    # hold) by call id and buffers, which costs GPU memory. Off by default: it halves lowering,
+    # but on a GPU the step's compile is mostly loading the compiled program, which it leaves as
+    # it is (docs/performance.md).
     share_traces: bool = False
 
     def __post_init__(self) -> None:
@@ -102,8 +104,8 @@ class PhysicsState:
 
     MJX-Warp's `mjx.Data` has ~185 arrays, and a state that carries one per scene makes every
     program that loops over it (a rollout's scan, autoreset's `cond`) pay in compile time for
-    each array squared: loading MT50's step from JAX's cache spent ~45 of its ~52 s printing the
-    loop's tuple shape once per element, to fingerprint it (README, Compile). The next step reads
+    each array squared: XLA fingerprints a program it loads by printing it, and the print writes
+    the whole carried tuple's shape at every element's use (docs/performance.md). The next step reads
     only MuJoCo's integration state (`mjSTATE_INTEGRATION`) and recomputes everything else, so the
     rest is rebuilt from `mjx.make_data` at each step. Batched: a leading axis of the scene's rows.
     """
@@ -188,8 +190,8 @@ class Physics:
             share(jax.vmap(functools.partial(mjx.kinematics, g.device_model))) for g in groups
         )
         # Every step rebuilds each scene's whole data from `mjx.make_data`; traced afresh at each
-        # of MT50's ~100 sites that took 40 s of the step's lowering on the H200. Jitted, it is
-        # traced once per scene. (It makes no Warp call, so none of `share_traces`' concerns.)
+        # of MT50's ~100 sites it dominated the step's lowering. Jitted, it is traced once per
+        # scene. (It makes no Warp call, so none of `share_traces`' concerns.)
         self._made: dict[tuple[int, int], Callable[[], mjx.Data]] = {}
 
     def make_data(self) -> tuple[PhysicsState, ...]:
@@ -252,9 +254,9 @@ class Physics:
         as MuJoCo C's `mj_step` does, computed before the last substep's integration."""
         step = self._substep[g]
         data = self.data(g, state)
-        # Unrolled by default. The loop (`unroll_substeps=False`) halves MT50's warm compile on
-        # the CPU but not on the H200: 74 s there, and 1.04-1.05M env steps/s against 1.08-1.11M
-        # unrolled (README, Compile).
+        # Unrolled by default. The loop (`unroll_substeps=False`) shortens the compile on the
+        # CPU; on a GPU, where loading the compiled program dominates, it does not, and it steps
+        # a few percent slower (docs/performance.md).
         if self.config.unroll_substeps:
             for _ in range(self.config.substeps):
                 data = step(data)

@@ -265,9 +265,11 @@ def index() -> str:
         "Each row is one run; its files share a name. Where the files do not record the command,",
         "`≈` marks one rebuilt from the settings they do record. Commands are quoted as they ran:",
         "`benchmarks/{contact,engine,grasp_step}_compare.py` and `benchmarks/determinism.py` now live in",
-        "`tools/`, `benchmarks/train_mt_ppo.py` in `examples/`. The documents that explain these",
-        "figures are [README.md](../../README.md), [docs/performance.md](../../docs/performance.md),",
-        "[docs/fidelity.md](../../docs/fidelity.md) and [docs/training.md](../../docs/training.md).",
+        "`tools/`, `benchmarks/train_mt_ppo.py` in `examples/`. Reports written at the time may name",
+        "files since removed (failed, killed or superseded runs; docs/performance.md says what the",
+        "failures taught). The documents that explain these figures are [README.md](../../README.md),",
+        "[docs/performance.md](../../docs/performance.md), [docs/fidelity.md](../../docs/fidelity.md)",
+        "and [docs/training.md](../../docs/training.md).",
         "",
     ]
     folders = [RESULTS / kind for kind in KINDS if (RESULTS / kind).is_dir()]

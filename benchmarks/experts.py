@@ -5,8 +5,8 @@ default) at the reference experts' setting: every task's own `MT1(task, seed=42)
 (the reference ran each task as MT1), one episode per variant (50 per task), up to 500 steps,
 success at any step. All episodes of all tasks run in one jitted
 scan. Compares each task with the serial reference run recorded by
-`tools/record_expert_success.py` (`benchmarks/results/reference-experts-seed42.json`) and writes
-a JSON and a Markdown table to `benchmarks/results/`.
+`tools/record_expert_success.py` (`benchmarks/results/reference/reference-experts-seed42.json`) and
+writes a JSON and a Markdown table to `benchmarks/results/experts/`.
 
     XLA_PYTHON_CLIENT_MEM_FRACTION=0.45 python benchmarks/experts.py
 """
@@ -16,6 +16,8 @@ from __future__ import annotations
 import argparse
 import datetime
 import json
+import shlex
+import sys
 import time
 from pathlib import Path
 
@@ -28,7 +30,7 @@ from mwjax import policies
 from mwjax.benchmarks import mt1_goal_variants, task_names
 from mwjax.evaluation import evaluator
 
-RESULTS = Path(__file__).parent / "results"
+RESULTS = Path(__file__).parent / "results" / "experts"
 TOLERANCE = 0.04  # the issue's bar: every task within 0.04 below the reference
 
 
@@ -58,7 +60,9 @@ def main() -> None:
         action="store_true",
         help="run the program once (its time then includes Warp's first-call work)",
     )
-    parser.add_argument("--reference", default=str(RESULTS / "reference-experts-seed42.json"))
+    parser.add_argument(
+        "--reference", default=str(RESULTS.parent / "reference" / "reference-experts-seed42.json")
+    )
     args = parser.parse_args()
     reference = json.loads(Path(args.reference).read_text())
 
@@ -112,6 +116,7 @@ def main() -> None:
         "device": getattr(device, "device_kind", str(device)),
         "commit": commit(),
         "date": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
+        "command": shlex.join(["python", *sys.argv]),
         "set": args.set,
         "physics": str(physics),
         "seed": args.seed,

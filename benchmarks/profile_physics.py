@@ -33,7 +33,7 @@ from mujoco.mjx.third_party.mujoco_warp._src import smooth, warp_util
 import mwjax
 from mwjax.physics import warp_model
 
-RESULTS = Path(__file__).parent / "results"
+RESULTS = Path(__file__).parent / "results" / "profile"
 
 
 @wp.kernel

@@ -26,7 +26,7 @@ from common import commit
 import mwjax
 from mwjax.benchmarks import task_names
 
-RESULTS = Path(__file__).parent / "results"
+RESULTS = Path(__file__).parent / "results" / "profile"
 
 
 def rate(env: mwjax.Env, step: Callable, steps: int) -> float:

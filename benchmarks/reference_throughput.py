@@ -3,7 +3,9 @@
 Runs under the reference's interpreter (metaworld pins mujoco 3.3.0, so it never shares a venv
 with mwjax); `throughput.py --vs-reference PYTHON` calls it and prints the ratio.
 
-    /work/venvs/ref/bin/python benchmarks/reference_throughput.py --set MT10 --steps 500
+    python3 -m venv .venv-ref && .venv-ref/bin/pip install metaworld==3.1.1 packaging
+    .venv-ref/bin/python benchmarks/reference_throughput.py --set MT10 --steps 500
+    python benchmarks/throughput.py --sets MT10 --vs-reference .venv-ref/bin/python
 
 Meta-World's `make_vec` builds one env per task (MT10: 10, MT50: 50, MT1: `--envs`), each in its
 own process with `vector_strategy="async"`, as researchers run it. Prints one JSON line.

@@ -61,9 +61,10 @@ class PhysicsConfig:
     ls_iterations: int | None = None
     # Contact and constraint buffers. Warp preallocates them and drops what overflows (flagged
     # in `Physics.overflow`). Contacts are pooled over the batch; constraint rows are per env.
-    # Warp's cost grows with the rows allocated (benchmarks/results/throughput-buffers-9a338f8-…
-    # md) and every step refills them (`PhysicsState`): "per_scene" gives each scene twice the
-    # rows MuJoCo C reaches in it (`mwjax.models.constraint_rows`, 128-448 instead of 512).
+    # Warp assembles and solves over every allocated row, used or not, and every step refills
+    # them (`PhysicsState`), so unused rows cost time: "per_scene" gives each scene twice the
+    # rows MuJoCo C reaches in it (`mwjax.models.constraint_rows`, 128-448 instead of 512;
+    # docs/performance.md).
     contacts_per_env: int = 64
     constraints_per_env: int | Literal["per_scene"] = "per_scene"
     # Slots of scratch for Warp's convex collider (GJK/EPA), pooled over a scene's batch for each
@@ -104,8 +105,8 @@ class PhysicsState:
 
     MJX-Warp's `mjx.Data` has ~185 arrays, and a state that carries one per scene makes every
     program that loops over it (a rollout's scan, autoreset's `cond`) pay in compile time for
-    each array squared: loading MT50's step from JAX's cache spent ~45 of its ~52 s printing the
-    loop's tuple shape once per element, to fingerprint it (README, Compile). The next step reads
+    each array squared: XLA fingerprints a program it loads by printing it, and the print writes
+    the whole carried tuple's shape at every element's use (docs/performance.md). The next step reads
     only MuJoCo's integration state (`mjSTATE_INTEGRATION`) and recomputes everything else, so the
     rest is rebuilt from `mjx.make_data` at each step. Batched: a leading axis of the scene's rows.
     """

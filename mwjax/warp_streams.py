@@ -7,9 +7,9 @@ a stream removes the entry that every other live wrapper of it relies on. Warp's
 its own exceptions while it builds a kernel, and their tracebacks keep the callback's frame, and
 with it that call's wrapper, in a reference cycle. Python's cyclic collector then deletes the
 wrapper at an arbitrary later moment; when that moment falls inside a later callback, between
-its registration and its `capture_begin`, the capture fails with "Warp error: unknown stream"
-(every MT50 run with per-scene constraint rows failed so at its first call,
-benchmarks/results/per-scene-rows-default-d2e3268-…md).
+its registration and its `capture_begin`, the capture fails with "Warp error: unknown stream".
+Unpatched, the MT50 step with per-scene constraint rows failed so at its first call every time
+it ran (docs/performance.md).
 
 `install()` counts the live wrappers of each external stream and unregisters a stream only
 when its last wrapper goes. Streams that Warp creates and owns are left as they are.

@@ -15,7 +15,7 @@ from mwjax import policies, stats
 from mwjax.benchmarks import ML10_TEST
 from mwjax.evaluation import evaluation, evaluator, metalearning_evaluation
 
-# Tasks on which the reference experts solve all 50 seed-42 goals (benchmarks/results/
+# Tasks on which the reference experts solve all 50 seed-42 goals (benchmarks/results/reference/
 # reference-experts-seed42.json); two share a scene. The experts need well under 150 steps on
 # them; a shorter horizon keeps the CPU rollouts short.
 EXPERT_TASKS = ["reach-v3", "drawer-open-v3", "drawer-close-v3"]

@@ -7,7 +7,7 @@ import sys
 from pathlib import Path
 
 ROOT = Path(__file__).parents[1]
-PATHS = ["mwjax", "tests", "tools", "benchmarks"]
+PATHS = ["mwjax", "tests", "tools", "benchmarks", "examples"]
 
 
 def test_ruff_lint():

@@ -1,16 +1,13 @@
-"""CPU smoke test of the jitted multi-task PPO loop (`benchmarks/train_mt_ppo.py`); the real run is
+"""CPU smoke test of the jitted multi-task PPO loop (`examples/train_mt_ppo.py`); the real run is
 a GPU benchmark. Two tasks of one scene, a tiny batch and 10-step episodes keep it short."""
 
 import dataclasses
-import sys
-from pathlib import Path
 
 import jax
 import numpy as np
 import pytest
 
-sys.path.insert(0, str(Path(__file__).parents[1] / "benchmarks"))
-import train_mt_ppo as ppo  # noqa: E402
+from examples import train_mt_ppo as ppo
 
 CONFIG = ppo.Config(
     task_set=("reach-v3", "push-v3"),

@@ -7,7 +7,8 @@ success if the task reports success at any step (the episode ends there, as with
 reference's `terminate_on_success` evaluation). One process, one env at a time: the serial
 protocol that `benchmarks/experts.py` is compared against.
 
-    .venv-ref/bin/python tools/record_expert_success.py  # -> benchmarks/results/reference-experts-seed42.json
+    .venv-ref/bin/python tools/record_expert_success.py
+    # -> benchmarks/results/reference/reference-experts-seed42.json
 """
 
 from __future__ import annotations
@@ -27,7 +28,7 @@ import numpy as np
 
 def main() -> None:
     parser = argparse.ArgumentParser()
-    parser.add_argument("--out", default="benchmarks/results/reference-experts-seed42.json")
+    parser.add_argument("--out", default="benchmarks/results/reference/reference-experts-seed42.json")
     parser.add_argument("--seed", type=int, default=42)
     parser.add_argument("--steps", type=int, default=500)
     args = parser.parse_args()

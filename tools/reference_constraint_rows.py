@@ -10,7 +10,7 @@ Runs in the reference venv (see tools/README_reference.md); never imports mwjax.
 steps and as many of random actions (numpy seed 0), rows and contacts read after every substep.
 
     .venv-ref/bin/python tools/reference_constraint_rows.py
-        # -> benchmarks/results/reference-constraint-rows-cpu-<date>.md
+        # -> benchmarks/results/reference/reference-constraint-rows-cpu-<date>.md
         # -> mwjax/models/constraint_rows.json (per scene: the most over its tasks)
 """
 
@@ -120,7 +120,7 @@ def main() -> None:
         entry["max_contacts"] = max(entry["max_contacts"], contacts)
         entry["max_ccd_pairs"] = max(entry["max_ccd_pairs"], ccd)
         entry["tasks"].append(task)
-    out = ROOT / "benchmarks" / "results" / f"reference-constraint-rows-cpu-{date}.md"
+    out = ROOT / "benchmarks" / "results" / "reference" / f"reference-constraint-rows-cpu-{date}.md"
     out.write_text("\n".join(lines) + "\n")
     table = ROOT / "mwjax" / "models" / "constraint_rows.json"
     source = f"tools/reference_constraint_rows.py, metaworld 3.1.1 on mujoco {mujoco.__version__}, {date}"

@@ -277,7 +277,7 @@ class NumpyVectorEnv(gym.vector.VectorWrapper):
     """NumPy actions in, NumPy results out, with one device-to-host copy of each step's outputs.
     Gymnasium's `JaxToNumpy` converts through DLPack, which fails on the GPU for arrays that
     MJX-Warp's FFI calls produce ("JaxCallableGraphMode.WARP is not supported for JAX CPU FFI
-    calls", H200, 2026-11-21); `jax.device_get` copies them fine."""
+    calls"); `jax.device_get` copies them fine."""
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[Any, dict]:
         return jax.device_get(self.env.reset(seed=seed, options=options))

@@ -1,0 +1,671 @@
+"""Multi-task PPO on MT10, entirely on device: env steps, policy, GAE and updates in one jitted loop.
+
+    python examples/train_mt_ppo.py                 # the documented run (GPU, one 10-minute call)
+    python examples/train_mt_ppo.py --set reach-v3,push-v3 --envs-per-task 2 --unroll 4 \
+        --minibatches 2 --updates 2 --eval-episodes 1  # a CPU smoke run
+
+One `lax.scan` runs `--log-every` PPO updates (each: `--unroll` steps of every env, GAE, several
+epochs of minibatch updates) without leaving the device; the host only prints progress between
+those chunks. The policy sees the 39-d observation plus a one-hot task id; observations are
+normalized with running statistics and rewards with a running scale per task (the ten tasks' V2
+rewards differ in scale), and advantages are normalized per task, so that no task's gradient
+drowns out another's. At the end the policy's mean action is evaluated with
+`mwjax.evaluation.evaluator` (50 episodes per task, one per goal variant, success at any step),
+and the learning curve is saved as JSON and PNG in `benchmarks/results/train/`.
+
+Needs the `train` extra (optax); the PNG needs matplotlib.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import datetime
+import json
+import math
+import os
+import shlex
+import subprocess
+import sys
+import time
+from pathlib import Path
+from typing import Any, Literal, NamedTuple
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import optax
+
+import mwjax
+from mwjax.evaluation import evaluator
+
+RESULTS = Path(__file__).parents[1] / "benchmarks" / "results" / "train"
+Array = jax.Array
+
+
+@dataclasses.dataclass(frozen=True)
+class Config:
+    task_set: str | tuple[str, ...] = "MT10"
+    envs_per_task: int = 3276
+    unroll: int = 16
+    minibatches: int = 32
+    epochs: int = 4
+    learning_rate: float = 3e-4
+    gamma: float = 0.99
+    gae_lambda: float = 0.95
+    clip: float = 0.2
+    value_coef: float = 0.5
+    entropy_coef: float = 1e-3
+    max_grad_norm: float = 1.0
+    hidden: tuple[int, ...] = (256, 256, 256)
+    init_log_std: float = -0.5
+    # Which layers of the policy and value networks each task has to itself (the rest are shared,
+    # and see the one-hot task id): "shared" none, "multi-head" the output layer, as in the
+    # multi-head agents of Meta-World's baselines (MTMHSAC), "per-task" all of them.
+    architecture: Literal["shared", "multi-head", "per-task"] = "multi-head"
+    # Cut each env's first episode short at a random multiple of `unroll` steps. Otherwise all
+    # envs run their episodes in lockstep and every update learns from one `unroll`-step slice
+    # of the episode (the reach, then the grasp, ...), forgetting the others in turn; legged_gym
+    # starts its envs at random episode lengths for the same reason. Multiples of `unroll` keep
+    # the restarts to a few steps of the first episode (each one resets rows of the whole batch).
+    staggered_starts: bool = True
+    reward_version: str = "v2"
+    max_episode_steps: int = 500
+    seed: int = 0
+
+
+class RunningStats(NamedTuple):
+    """Mean and variance over everything seen so far (Chan et al.'s parallel merge), per column
+    or, for rewards, per task."""
+
+    count: Array
+    mean: Array
+    var: Array
+
+    @staticmethod
+    def zeros(shape: tuple[int, ...]) -> RunningStats:
+        return RunningStats(jnp.zeros(shape[:-1] or ()), jnp.zeros(shape), jnp.ones(shape))
+
+    def merge(self, batch: Array, axis: tuple[int, ...]) -> RunningStats:
+        n = math.prod(batch.shape[a] for a in axis)
+        mean, var = batch.mean(axis=axis), batch.var(axis=axis)
+        total = self.count + n
+        delta = mean - self.mean
+        new_mean = self.mean + delta * n / total
+        m2 = self.var * self.count + var * n + delta**2 * self.count * n / total
+        return RunningStats(total, new_mean, m2 / total)
+
+
+class Params(NamedTuple):
+    """Layers are `(w, b)`; a task's own layer has a leading task axis on both."""
+
+    policy: list[tuple[Array, Array]]
+    log_std: Array  # (tasks, 4): each task explores at its own scale
+    value: list[tuple[Array, Array]]
+
+
+class Normalizers(NamedTuple):
+    obs: RunningStats
+    returns: RunningStats  # per task, of the discounted return accumulated so far
+
+
+class Transition(NamedTuple):
+    obs: Array  # as observed, with the one-hot task id
+    action: Array  # unclipped Gaussian sample
+    log_prob: Array
+    value: Array
+    reward: Array  # raw
+    truncated: Array
+    final_value: Array  # value of the episode's last observation, where it was truncated
+
+
+class Carry(NamedTuple):
+    params: Params
+    opt_state: Any
+    norm: Normalizers
+    env_state: mwjax.State
+    running_return: Array  # per env, for the reward scale
+    episode_success: Array  # per env: success at any step of the current episode
+    first_cut: Array  # per env: the step at which its first episode is cut short, or -1
+    key: Array
+
+
+class Metrics(NamedTuple):
+    episodes: Array  # per task, episodes finished
+    successes: Array  # per task, of those, ones that succeeded
+    loss: Array
+    approx_kl: Array
+
+
+def _orthogonal(key: Array, shape: tuple[int, ...], scale: float) -> Array:
+    """`jax.nn.initializers.orthogonal`'s matrices (the last two axes; any leading ones are a
+    batch), with the QR done by NumPy on the host: inside a jitted function on a 2-core CPU, two
+    batched LAPACK QRs running at once can each wait for the other's share of XLA's two-thread
+    pool, and the program hangs (seen in CI's smoke test)."""
+    *batch, n_rows, n_cols = shape
+    normal = jax.random.normal(key, (*batch, max(n_rows, n_cols), min(n_rows, n_cols)))
+    q, r = np.linalg.qr(np.asarray(normal, np.float64))
+    q = q * np.sign(np.diagonal(r, axis1=-2, axis2=-1))[..., None, :]
+    if n_rows < n_cols:
+        q = np.swapaxes(q, -1, -2)
+    return jnp.asarray(scale * q, jnp.float32)
+
+
+def _mlp_init(
+    key: Array, sizes: list[int], last_scale: float, own_layers: int, n_tasks: int
+) -> list[tuple[Array, Array]]:
+    """An MLP whose last `own_layers` layers are per task (host-side: see `_orthogonal`)."""
+    layers = []
+    n_layers = len(sizes) - 1
+    for i, (fan_in, fan_out) in enumerate(zip(sizes[:-1], sizes[1:], strict=True)):
+        key, sub = jax.random.split(key)
+        scale = last_scale if i == n_layers - 1 else math.sqrt(2.0)
+        tasks = (n_tasks,) if i >= n_layers - own_layers else ()
+        layers.append((_orthogonal(sub, (*tasks, fan_in, fan_out), scale), jnp.zeros((*tasks, fan_out))))
+    return layers
+
+
+def _dense(x: Array, w: Array, b: Array) -> Array:
+    """`x` is `(tasks, n, features)`; a per-task layer applies each task's weights to its rows."""
+    if w.ndim == 2:
+        return x @ w + b
+    return jnp.einsum("tni,tio->tno", x, w) + b[:, None]
+
+
+def _mlp(layers: list[tuple[Array, Array]], x: Array) -> Array:
+    for w, b in layers[:-1]:
+        x = jax.nn.swish(_dense(x, w, b))
+    return _dense(x, *layers[-1])
+
+
+def _log_prob(mean: Array, log_std: Array, action: Array) -> Array:
+    """Of `(tasks, n, 4)` actions under `(tasks, 4)` log standard deviations."""
+    log_std = log_std[:, None]
+    z = (action - mean) * jnp.exp(-log_std)
+    return jnp.sum(-0.5 * z**2 - log_std - 0.5 * math.log(2 * math.pi), axis=-1)
+
+
+class Trainer:
+    """The jitted pieces of a run: `init(key)`, `train_chunk(carry, n)` and `evaluator(episodes)`."""
+
+    def __init__(self, config: Config) -> None:
+        self.config = config
+        self.env = mwjax.make(
+            config.task_set,
+            envs_per_task=config.envs_per_task,
+            seed=config.seed,
+            reward_version=config.reward_version,
+            max_episode_steps=config.max_episode_steps,
+        )
+        self.n_tasks = len(self.env.task_list)
+        self.obs_size = mwjax.env.OBS_SIZE + self.n_tasks
+        self.one_hot = jnp.asarray(self.env.task_one_hot())
+        per_task = self.env.envs_per_task * config.unroll
+        if per_task % config.minibatches:
+            raise ValueError(
+                f"{per_task} samples per task and update do not split into {config.minibatches} minibatches"
+            )
+        self.optimizer = optax.chain(
+            optax.clip_by_global_norm(config.max_grad_norm), optax.adam(config.learning_rate)
+        )
+        self._init_rest = jax.jit(self._init_rest_of_carry)
+        self.train_chunk = jax.jit(self._train_chunk, static_argnums=1, donate_argnums=0)
+
+    # -- the policy ---------------------------------------------------------------------------
+
+    def init(self, key: Array) -> Carry:
+        cfg = self.config
+        policy_key, value_key, env_key, cut_key, key = jax.random.split(key, 5)
+        sizes = [self.obs_size, *cfg.hidden]
+        own = {"shared": 0, "multi-head": 1, "per-task": len(sizes)}[cfg.architecture]
+        params = Params(
+            policy=_mlp_init(policy_key, [*sizes, 4], 0.01, own, self.n_tasks),
+            log_std=jnp.full((self.n_tasks, 4), cfg.init_log_std),
+            value=_mlp_init(value_key, [*sizes, 1], 1.0, own, self.n_tasks),
+        )
+        return self._init_rest(params, env_key, cut_key, key)
+
+    def _init_rest_of_carry(self, params: Params, env_key: Array, cut_key: Array, key: Array) -> Carry:
+        cfg = self.config
+        norm = Normalizers(RunningStats.zeros((mwjax.env.OBS_SIZE,)), RunningStats.zeros((self.n_tasks,)))
+        env_state = self.env.reset(env_key)
+        zeros = jnp.zeros(self.env.num_envs)
+        first_cut = jnp.full(self.env.num_envs, -1, jnp.int32)
+        if cfg.staggered_starts:
+            slots = jax.random.randint(cut_key, first_cut.shape, 0, cfg.max_episode_steps // cfg.unroll)
+            first_cut = jnp.where(slots > 0, slots * cfg.unroll, -1)
+        return Carry(
+            params, self.optimizer.init(params), norm, env_state, zeros, zeros.astype(bool), first_cut, key
+        )
+
+    def _with_task(self, obs: Array) -> Array:
+        return jnp.concatenate([obs, self.one_hot], axis=-1)
+
+    @staticmethod
+    def _normalize(norm: Normalizers, obs: Array) -> Array:
+        """Normalizes the env observation; the one-hot task id after it passes through as is."""
+        env_obs, task = obs[..., : mwjax.env.OBS_SIZE], obs[..., mwjax.env.OBS_SIZE :]
+        env_obs = jnp.clip((env_obs - norm.obs.mean) / jnp.sqrt(norm.obs.var + 1e-8), -10.0, 10.0)
+        return jnp.concatenate([env_obs, task], axis=-1)
+
+    # The networks take `(tasks, n, features)`: every batch here, the evaluator's included, is
+    # laid out task by task, so a flat batch of envs splits into equal runs of rows per task.
+
+    def _by_task(self, x: Array) -> Array:
+        return x.reshape(self.n_tasks, -1, *x.shape[1:])
+
+    def _mean(self, params: Params, obs: Array) -> Array:
+        return _mlp(params.policy, obs)
+
+    def _value(self, params: Params, obs: Array) -> Array:
+        return _mlp(params.value, obs)[..., 0]
+
+    def _per_task(self, x: Array) -> Array:
+        """`(unroll, num_envs)` as `(unroll, tasks, envs_per_task)`."""
+        return x.reshape(x.shape[0], self.n_tasks, self.env.envs_per_task, *x.shape[2:])
+
+    def policy(self, params_and_norm: tuple[Params, Normalizers], obs: Array, key: Array) -> Array:
+        """The deterministic (mean) action for a task-major batch of observations with one-hot
+        task ids appended, as `mwjax.evaluation.evaluator(..., one_hot=True)` calls a policy."""
+        del key
+        params, norm = params_and_norm
+        mean = self._mean(params, self._by_task(self._normalize(norm, obs)))
+        return jnp.clip(mean.reshape(obs.shape[0], 4), -1.0, 1.0)
+
+    # -- one PPO update -------------------------------------------------------------------------
+
+    def _rollout(self, carry: Carry) -> tuple[Carry, Transition, Array, Array]:
+        params, norm = carry.params, carry.norm
+
+        def step(c: tuple, key: Array) -> tuple[tuple, tuple[Transition, Array, Array]]:
+            env_state, episode_success, first_cut = c
+            raw = self._with_task(env_state.obs)
+            obs = self._by_task(self._normalize(norm, raw))
+            mean = self._mean(params, obs)
+            action = mean + jnp.exp(params.log_std)[:, None] * jax.random.normal(key, mean.shape)
+            log_prob = _log_prob(mean, params.log_std, action).reshape(-1)
+            value = self._value(params, obs).reshape(-1)
+            action = action.reshape(-1, 4)
+            env_state = self.env.step(env_state, jnp.clip(action, -1.0, 1.0))
+            full_length = env_state.truncated
+            cut = env_state.steps == first_cut
+            truncated = full_length | cut
+            last_obs = jnp.where(cut[:, None], env_state.obs, env_state.info["final_obs"])
+            final_obs = self._normalize(norm, self._with_task(last_obs))
+            final_value = self._value(params, self._by_task(final_obs)).reshape(-1)
+            success = episode_success | env_state.info["success"]
+            transition = Transition(
+                raw,
+                action,
+                log_prob,
+                value,
+                env_state.reward,
+                truncated,
+                jnp.where(truncated, final_value, 0.0),
+            )
+            if self.config.staggered_starts:
+                env_state = jax.lax.cond(
+                    jnp.any(cut), lambda s: self.env.restart(s, cut), lambda s: s, env_state
+                )
+            # Training success counts full-length episodes only; cut ones had less time.
+            ended = full_length & success
+            next_c = (env_state, success & ~truncated, jnp.where(truncated, -1, first_cut))
+            return next_c, (transition, full_length, ended)
+
+        key, rollout_key = jax.random.split(carry.key)
+        keys = jax.random.split(rollout_key, self.config.unroll)
+        (env_state, episode_success, first_cut), (batch, ended, ended_success) = jax.lax.scan(
+            step, (carry.env_state, carry.episode_success, carry.first_cut), keys
+        )
+        episodes = self._per_task(ended).sum(axis=(0, 2))
+        successes = self._per_task(ended_success).sum(axis=(0, 2))
+        carry = carry._replace(
+            env_state=env_state, episode_success=episode_success, first_cut=first_cut, key=key
+        )
+        return carry, batch, episodes, successes
+
+    def _scaled_rewards(self, carry: Carry, batch: Transition) -> tuple[Carry, Array]:
+        """Rewards divided by each task's running std of the discounted return."""
+
+        def accumulate(running: Array, x: tuple[Array, Array]) -> tuple[Array, Array]:
+            reward, truncated = x
+            running = running * self.config.gamma + reward
+            return jnp.where(truncated, 0.0, running), running
+
+        running, returns = jax.lax.scan(accumulate, carry.running_return, (batch.reward, batch.truncated))
+        stats = carry.norm.returns.merge(self._per_task(returns).transpose(0, 2, 1), axis=(0, 1))
+        scale = jnp.repeat(jnp.sqrt(stats.var + 1e-8), self.env.envs_per_task)
+        norm = carry.norm._replace(returns=stats)
+        return carry._replace(norm=norm, running_return=running), batch.reward / scale
+
+    def _advantages(
+        self, params: Params, norm: Normalizers, env_state: mwjax.State, batch: Transition, rewards: Array
+    ) -> tuple[Array, Array]:
+        cfg = self.config
+        last_obs = self._normalize(norm, self._with_task(env_state.obs))
+        last_value = self._value(params, self._by_task(last_obs)).reshape(-1)
+        next_values = jnp.concatenate([batch.value[1:], last_value[None]])
+        # At a truncation the next obs is the new episode's: bootstrap from the final obs instead.
+        next_values = jnp.where(batch.truncated, batch.final_value, next_values)
+        deltas = rewards + cfg.gamma * next_values - batch.value
+
+        def backward(advantage: Array, x: tuple[Array, Array]) -> tuple[Array, Array]:
+            delta, truncated = x
+            advantage = delta + cfg.gamma * cfg.gae_lambda * jnp.where(truncated, 0.0, advantage)
+            return advantage, advantage
+
+        _, advantages = jax.lax.scan(
+            backward, jnp.zeros_like(last_value), (deltas, batch.truncated), reverse=True
+        )
+        return advantages, advantages + batch.value
+
+    def _loss(self, params: Params, mb: Transition, advantages: Array, targets: Array) -> Array:
+        cfg = self.config
+        mean = self._mean(params, mb.obs)
+        log_prob = _log_prob(mean, params.log_std, mb.action)
+        ratio = jnp.exp(log_prob - mb.log_prob)
+        policy_loss = -jnp.minimum(
+            ratio * advantages, jnp.clip(ratio, 1 - cfg.clip, 1 + cfg.clip) * advantages
+        ).mean()
+        value_loss = 0.5 * ((self._value(params, mb.obs) - targets) ** 2).mean()
+        entropy = jnp.sum(params.log_std + 0.5 * math.log(2 * math.pi * math.e)) / self.n_tasks
+        loss = policy_loss + cfg.value_coef * value_loss - cfg.entropy_coef * entropy
+        return loss, (mb.log_prob - log_prob).mean()
+
+    def _update(self, carry: Carry, _: None) -> tuple[Carry, Metrics]:
+        carry, batch, episodes, successes = self._rollout(carry)
+        carry, loss, kl = self._learn(carry, batch)
+        return carry, Metrics(episodes, successes, loss, kl)
+
+    def _learn(self, carry: Carry, batch: Transition) -> tuple[Carry, Array, Array]:
+        """The learner's half of an update: returns, advantages and the epochs of minibatches."""
+        cfg = self.config
+        carry, rewards = self._scaled_rewards(carry, batch)
+        advantages, targets = self._advantages(carry.params, carry.norm, carry.env_state, batch, rewards)
+        per_task = self._per_task(advantages)
+        per_task = (per_task - per_task.mean(axis=(0, 2), keepdims=True)) / (
+            per_task.std(axis=(0, 2), keepdims=True) + 1e-8
+        )
+        advantages = per_task.reshape(advantages.shape)
+        # The loss sees observations as the rollout's policy saw them; the statistics of this
+        # rollout then join the running ones, for the next rollouts.
+        env_obs = batch.obs[..., : mwjax.env.OBS_SIZE]
+        norm = carry.norm._replace(obs=carry.norm.obs.merge(env_obs, axis=(0, 1)))
+        batch = batch._replace(obs=self._normalize(carry.norm, batch.obs))
+
+        # `(tasks, unroll * envs_per_task, ...)`: every minibatch takes as many samples of each task.
+        by_task = jax.tree.map(
+            lambda x: jnp.moveaxis(self._per_task(x), 1, 0).reshape(self.n_tasks, -1, *x.shape[2:]),
+            (batch, advantages, targets),
+        )
+        n = by_task[1].shape[1]
+
+        def epoch(c: tuple, key: Array) -> tuple[tuple, tuple[Array, Array]]:
+            order = jax.random.permutation(key, n).reshape(cfg.minibatches, -1)
+
+            def minibatch(c: tuple, idx: Array) -> tuple[tuple, tuple[Array, Array]]:
+                params, opt_state = c
+                mb, adv, tgt = jax.tree.map(lambda x: x[:, idx], by_task)
+                (loss, kl), grads = jax.value_and_grad(self._loss, has_aux=True)(params, mb, adv, tgt)
+                updates, opt_state = self.optimizer.update(grads, opt_state, params)
+                return (optax.apply_updates(params, updates), opt_state), (loss, kl)
+
+            return jax.lax.scan(minibatch, c, order)
+
+        key, epoch_key = jax.random.split(carry.key)
+        (params, opt_state), (loss, kl) = jax.lax.scan(
+            epoch, (carry.params, carry.opt_state), jax.random.split(epoch_key, cfg.epochs)
+        )
+        carry = carry._replace(params=params, opt_state=opt_state, norm=norm, key=key)
+        return carry, loss.mean(), kl.mean()
+
+    def _train_chunk(self, carry: Carry, updates: int) -> tuple[Carry, Metrics]:
+        carry, metrics = jax.lax.scan(self._update, carry, None, length=updates)
+        return carry, Metrics(
+            metrics.episodes.sum(0), metrics.successes.sum(0), metrics.loss.mean(), metrics.approx_kl.mean()
+        )
+
+    def learner_seconds(self, carry: Carry, updates: int) -> float:
+        """Wall time of the learner's half of `updates` updates alone (compile excluded), on a
+        stand-in rollout of the real shapes: what is left of an update is the simulator and the
+        policy acting in it."""
+        batch = jax.eval_shape(self._rollout, carry)[1]
+        keys = iter(jax.random.split(jax.random.key(0), len(jax.tree.leaves(batch))))
+        batch = jax.tree.map(
+            lambda s: (
+                jax.random.normal(next(keys), s.shape)
+                if s.dtype == jnp.float32
+                else jnp.zeros(s.shape, s.dtype)
+            ),
+            batch,
+        )
+        learn = jax.jit(
+            lambda c, b: jax.lax.scan(lambda c, _: (self._learn(c, b)[0], None), c, None, length=updates)[0]
+        )
+        compiled = learn.lower(carry, batch).compile()
+        jax.block_until_ready(compiled(carry, batch))
+        t0 = time.perf_counter()
+        jax.block_until_ready(compiled(carry, batch))
+        return time.perf_counter() - t0
+
+    def evaluator(self, num_episodes: int = 50) -> Any:
+        return jax.jit(evaluator(self.env, self.policy, num_episodes, one_hot=True))
+
+    @property
+    def steps_per_update(self) -> int:
+        return self.env.num_envs * self.config.unroll
+
+
+def train(
+    config: Config,
+    minutes: float,
+    log_every: int,
+    max_updates: int | None = None,
+    eval_episodes: int = 50,
+    time_learner: bool = False,
+) -> dict:
+    """Train until `minutes` of wall clock (compile included) or `max_updates`; then evaluate,
+    and with `time_learner` time the learner alone against the last chunk of updates."""
+    start = time.perf_counter()
+    trainer = Trainer(config)
+    carry = trainer.init(jax.random.key(config.seed))
+    curve: list[dict] = []
+    updates = 0
+    budget = minutes * 60
+    chunk_s = 0.0
+    print(
+        f"{config.task_set}: {trainer.env.num_envs} envs, {trainer.steps_per_update:,} env steps per update",
+        flush=True,
+    )
+    while max_updates is None or updates < max_updates:
+        n = log_every if max_updates is None else min(log_every, max_updates - updates)
+        elapsed = time.perf_counter() - start
+        if max_updates is None and elapsed + chunk_s > budget:
+            break
+        t0 = time.perf_counter()
+        carry, metrics = trainer.train_chunk(carry, n)
+        metrics = jax.device_get(metrics)
+        chunk_s = time.perf_counter() - t0 if updates else 0.0
+        updates += n
+        rates = metrics.successes / np.maximum(metrics.episodes, 1)
+        row = {
+            "updates": updates,
+            "env_steps": updates * trainer.steps_per_update,
+            "wall_s": time.perf_counter() - start,
+            "train_success": float(rates.mean()) if metrics.episodes.all() else None,
+            "train_success_per_task": dict(zip(trainer.env.task_list, rates.tolist(), strict=True)),
+            "loss": float(metrics.loss),
+            "approx_kl": float(metrics.approx_kl),
+        }
+        curve.append(row)
+        _progress(row, budget, trainer.env.task_list, rates, metrics.episodes)
+    train_s = time.perf_counter() - start
+    t0 = time.perf_counter()
+    result = trainer.evaluator(eval_episodes)((carry.params, carry.norm), jax.random.key(config.seed + 1000))
+    success = np.asarray(result.success_rate)
+    split = {}
+    if time_learner and chunk_s:  # chunk_s is 0 if the only chunk included the compile
+        learner_s = trainer.learner_seconds(carry, n)
+        split = {"time_split": {"updates": n, "update_s": chunk_s, "learner_s": learner_s}}
+        print(
+            f"{n} updates: {chunk_s:.1f}s, of which the learner alone {learner_s:.1f}s "
+            f"({learner_s / chunk_s:.0%}); simulator and acting the rest",
+            flush=True,
+        )
+    return {
+        **split,
+        "config": dataclasses.asdict(config),
+        "curve": curve,
+        "train_s": train_s,
+        "eval_s": time.perf_counter() - t0,
+        "eval_success_per_task": dict(zip(trainer.env.task_list, success.tolist(), strict=True)),
+        "eval_success": float(success.mean()),
+        "params": carry.params,
+    }
+
+
+def _progress(
+    row: dict, budget: float, tasks: tuple[str, ...], rates: np.ndarray, episodes: np.ndarray
+) -> None:
+    done = min(row["wall_s"] / budget, 1.0)
+    bar = "#" * int(30 * done) + "." * (30 - int(30 * done))
+    mean = "  n/a" if row["train_success"] is None else f"{row['train_success']:.3f}"
+    per_task = " ".join(
+        f"{t.removesuffix('-v3')}={r:.2f}" if e else f"{t.removesuffix('-v3')}=n/a"
+        for t, r, e in zip(tasks, rates, episodes, strict=True)
+    )
+    print(
+        f"[{bar}] {row['wall_s']:6.0f}s  {row['env_steps'] / 1e6:8.1f}M steps  "
+        f"update {row['updates']}  loss {row['loss']:.3f}  success {mean} | {per_task}",
+        flush=True,
+    )
+
+
+def _plot(runs: list[dict], path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4))
+    for run in runs:
+        points = [r for r in run["curve"] if r["train_success"] is not None]
+        label = f"seed {run['config']['seed']} (eval {run['eval_success']:.2f})"
+        axes[0].plot(
+            [r["env_steps"] / 1e6 for r in points], [r["train_success"] for r in points], label=label
+        )
+        axes[1].plot([r["wall_s"] for r in points], [r["train_success"] for r in points], label=label)
+    axes[0].set_xlabel("env steps (millions)")
+    axes[1].set_xlabel("wall clock (s, compile included)")
+    for ax in axes:
+        ax.set_ylabel("mean success, training episodes")
+        ax.set_ylim(0, 1)
+        ax.grid(alpha=0.3)
+        ax.legend()
+    fig.suptitle(
+        f"{runs[0]['config']['task_set']} multi-task PPO ({runs[0]['config']['reward_version']} rewards)"
+    )
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+
+
+def _commit() -> str:
+    """The repository's HEAD (or $MWJAX_COMMIT), recorded with the results."""
+    if os.environ.get("MWJAX_COMMIT"):
+        return os.environ["MWJAX_COMMIT"]
+    try:
+        return subprocess.run(
+            ["git", "rev-parse", "HEAD"], capture_output=True, text=True, check=True
+        ).stdout.strip()
+    except (OSError, subprocess.CalledProcessError):
+        return "unknown"
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    defaults = Config()
+    parser.add_argument("--set", default=defaults.task_set, help="a set name, or tasks separated by commas")
+    parser.add_argument("--envs-per-task", type=int, default=defaults.envs_per_task)
+    parser.add_argument("--unroll", type=int, default=defaults.unroll)
+    parser.add_argument("--minibatches", type=int, default=defaults.minibatches)
+    parser.add_argument("--epochs", type=int, default=defaults.epochs)
+    parser.add_argument("--lr", type=float, default=defaults.learning_rate)
+    parser.add_argument("--entropy-coef", type=float, default=defaults.entropy_coef)
+    parser.add_argument("--reward-version", default=defaults.reward_version)
+    parser.add_argument(
+        "--architecture",
+        choices=["shared", "multi-head", "per-task"],
+        default=defaults.architecture,
+        help="the networks' layers each task has to itself: none, the output layer, all",
+    )
+    parser.add_argument("--init-log-std", type=float, default=defaults.init_log_std)
+    parser.add_argument(
+        "--staggered-starts",
+        action=argparse.BooleanOptionalAction,
+        default=defaults.staggered_starts,
+        help="cut each env's first episode at a random multiple of --unroll steps (runs 1-6: off)",
+    )
+    parser.add_argument("--seeds", type=int, nargs="+", default=[0])
+    parser.add_argument("--minutes", type=float, default=8.4, help="wall clock per seed, compile included")
+    parser.add_argument("--updates", type=int, default=None, help="stop after this many updates instead")
+    parser.add_argument("--log-every", type=int, default=10, help="updates per jitted chunk")
+    parser.add_argument("--eval-episodes", type=int, default=50, help="per task, one per goal variant")
+    parser.add_argument(
+        "--time-learner", action="store_true", help="after the evaluation, time the learner alone"
+    )
+    parser.add_argument(
+        "--out", default=None, help="result stem (default: benchmarks/results/train/train-...)"
+    )
+    args = parser.parse_args()
+
+    runs = []
+    for seed in args.seeds:
+        config = Config(
+            task_set=tuple(args.set.split(",")) if "," in args.set else args.set,
+            envs_per_task=args.envs_per_task,
+            unroll=args.unroll,
+            minibatches=args.minibatches,
+            epochs=args.epochs,
+            learning_rate=args.lr,
+            entropy_coef=args.entropy_coef,
+            architecture=args.architecture,
+            init_log_std=args.init_log_std,
+            staggered_starts=args.staggered_starts,
+            reward_version=args.reward_version,
+            seed=seed,
+        )
+        run = train(config, args.minutes, args.log_every, args.updates, args.eval_episodes, args.time_learner)
+        run.pop("params")
+        print(
+            f"seed {seed}: evaluation success {run['eval_success']:.3f} "
+            f"({run['eval_s']:.0f}s) {run['eval_success_per_task']}",
+            flush=True,
+        )
+        runs.append(run)
+    device = jax.devices()[0]
+    summary = {
+        "device": getattr(device, "device_kind", str(device)),
+        "commit": _commit(),
+        "date": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
+        "command": shlex.join(["python", *sys.argv]),
+        "eval_success": [r["eval_success"] for r in runs],
+        "runs": runs,
+    }
+    if len(runs) > 1:
+        from mwjax.stats import iqm, stratified_bootstrap_ci
+
+        # Per-task success of each seed, IQM over all of them, CI from resampling seeds per task.
+        scores = np.array([list(r["eval_success_per_task"].values()) for r in runs])
+        estimate = stratified_bootstrap_ci(scores)
+        summary["iqm"] = iqm(scores)
+        summary["iqm_ci95"] = [estimate.low, estimate.high]
+    stem = args.out or str(
+        RESULTS / f"train-{args.set}-ppo-{summary['device']}-{summary['date'][:10]}".replace(" ", "_")
+    )
+    Path(f"{stem}.json").write_text(json.dumps(summary, indent=2))
+    _plot(runs, Path(f"{stem}.png"))
+    print(f"-> {stem}.json, {stem}.png")
+
+
+if __name__ == "__main__":
+    main()

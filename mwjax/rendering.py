@@ -32,11 +32,14 @@ import mujoco
 import numpy as np
 from mujoco import mjx
 
+from mwjax import warp_render_lighting
 from mwjax.env import Env, State
 from mwjax.models import SCENES_DIR
 from mwjax.physics import SceneGroup, _graph_mode
 
 Array = jax.Array
+warp_render_lighting.install()
+LIGHTING = ("opengl", "mjwarp")
 
 # The cameras of every Meta-World scene (`objects/assets/xyz_base.xml`), in MuJoCo's id order:
 # `camera_id=i` is `CAMERAS[i]`, as in the reference.
@@ -121,6 +124,7 @@ class _Group:
         shadows: bool,
         samples_per_pixel: int,
         sites: bool,
+        lighting: str,
         graph_mode: str | None,
     ) -> None:
         self.rows = rows  # local rows of the group
@@ -155,7 +159,11 @@ class _Group:
             cam_active=[c.name if c.mode != "free" else _FREE_NAME for c in self.cameras],
             render_skybox=bool(np.any(skybox)),
             samples_per_pixel=samples_per_pixel,
+            # OpenGL's shadow maps leave a blocked light nothing; MJWarp's default leaves 0.3.
+            **({"shadow_light_fraction": 0.0} if lighting == "opengl" else {}),
         )
+        if lighting == "opengl":
+            warp_render_lighting.use_opengl_lighting(self.context)
         self.rgb_adr = [int(a) for a in self.context.rgb_adr.numpy()]
         self.depth_adr = [int(a) for a in self.context.depth_adr.numpy()]
         self.width, self.height = width, height
@@ -251,7 +259,9 @@ class Renderer:
     which images to make. `shadows`: the scene's shadow-casting light casts shadows, as in the
     reference (costs a second ray per pixel). `samples_per_pixel`: n gives n x n supersampling
     (the reference's OpenGL renders with 4x multisampling). `sites`: draw the visible sites (the
-    goal marker at the task's goal, end-effector markers), as the reference does.
+    goal marker at the task's goal, end-effector markers), as the reference does. `lighting`:
+    "opengl" lights surfaces as MuJoCo's OpenGL renderer does (`mwjax.warp_render_lighting`),
+    "mjwarp" as MJWarp's ray tracer does (brighter where textures face the lights).
 
     `render` and `capture`/`draw` are pure JAX functions of the state (jit them, use them in
     `lax.scan`); the batch size of each scene is fixed at construction.
@@ -269,9 +279,12 @@ class Renderer:
         shadows: bool = True,
         samples_per_pixel: int = 1,
         sites: bool = True,
+        lighting: str = "opengl",
     ) -> None:
         if not (rgb or depth):
             raise ValueError("render rgb, depth or both")
+        if lighting not in LIGHTING:
+            raise ValueError(f"lighting must be one of {LIGHTING}, got {lighting!r}")
         if not (isinstance(width, int) and isinstance(height, int) and width > 0 and height > 0):
             raise ValueError(f"width and height must be positive ints, got {width!r}, {height!r}")
         self.env = env
@@ -317,6 +330,7 @@ class Renderer:
                         shadows,
                         samples_per_pixel,
                         sites,
+                        lighting,
                         graph_mode,
                     ),
                 )
@@ -662,3 +676,62 @@ def _quat_to_mat_np(q: np.ndarray) -> np.ndarray:
     mat = np.zeros(9)
     mujoco.mju_quat2Mat(mat, np.asarray(q, np.float64))
     return mat.reshape(3, 3)
+
+
+# --------------------------------------------------------------------------------------------
+# Gymnasium's render()
+
+RENDER_MODES = ("rgb_array", "depth_array")
+
+
+class GymFrames:
+    """Frames for Gymnasium's `render()` with the reference's kwargs: NumPy images of chosen envs
+    of an env's current state, `(H, W, 3)` uint8 for `"rgb_array"` and, for `"depth_array"`,
+    `(H, W)` float32 depth-buffer values as the reference returns them (`depth_buffer`). The
+    renderer is built at the first frame (a few seconds), as the reference opens its viewer."""
+
+    def __init__(
+        self,
+        env: Env,
+        render_mode: str | None,
+        envs: Sequence[int],
+        camera_name: str | None = None,
+        camera_id: int | None = None,
+        width: int = DEFAULT_SIZE,
+        height: int = DEFAULT_SIZE,
+    ) -> None:
+        if render_mode is not None and render_mode not in RENDER_MODES:
+            raise ValueError(f"render_mode must be None or one of {RENDER_MODES}, got {render_mode!r}")
+        self.env = env
+        self.render_mode = render_mode
+        self.envs = tuple(int(e) for e in envs)
+        self.camera = camera_name_of(camera_name, camera_id)
+        self.width, self.height = width, height
+        self._renderer: Renderer | None = None
+        self._render: Any = None
+
+    def __call__(self, state: State | None) -> list[np.ndarray] | None:
+        if self.render_mode is None:
+            return None
+        if state is None:
+            raise RuntimeError("call reset() before render()")
+        if self._renderer is None:
+            depth = self.render_mode == "depth_array"
+            self._renderer = Renderer(
+                self.env, self.camera, self.width, self.height, envs=self.envs, rgb=not depth, depth=depth
+            )
+            self._render = jax.jit(self._renderer.render)
+        images = self._render(state)
+        if self.render_mode == "rgb_array":
+            return list(np.asarray(images.rgb))
+        depth = np.asarray(images.depth)
+        models = [self.env.physics.groups[_group_of(self.env, e)].model for e in self.envs]
+        return [depth_buffer(d, m) for d, m in zip(depth, models, strict=True)]
+
+
+camera_name_of = camera_name
+
+
+def _group_of(env: Env, row: int) -> int:
+    groups = env.physics.groups
+    return next(g for g, group in enumerate(groups) if group.start <= row < group.start + group.size)

@@ -394,6 +394,18 @@ def _jitted_draw(renderer: Renderer) -> Any:
     return cache[key][1]
 
 
+def image_agreement(a: np.ndarray, b: np.ndarray, tolerance: float = 0.1) -> tuple[float, float]:
+    """How close two uint8 RGB images are (docs/rendering.md): the mean absolute difference of
+    their values in [0, 1], and the fraction of pixels whose channels all differ by at most
+    `tolerance`."""
+    a = np.asarray(a, np.float64) / 255
+    b = np.asarray(b, np.float64) / 255
+    if a.shape != b.shape:
+        raise ValueError(f"images differ in shape: {a.shape} and {b.shape}")
+    diff = np.abs(a - b)
+    return float(diff.mean()), float(np.mean(diff.max(axis=-1) <= tolerance))
+
+
 def depth_buffer(depth: np.ndarray | Array, model: mujoco.MjModel) -> np.ndarray | Array:
     """Metric depth (0 where nothing is hit) as the values OpenGL's depth buffer holds, which is
     what the reference's `render_mode="depth_array"` returns: `(1/near - 1/z) / (1/near - 1/far)`

@@ -394,15 +394,19 @@ def _jitted_draw(renderer: Renderer) -> Any:
     return cache[key][1]
 
 
-def image_agreement(a: np.ndarray, b: np.ndarray, tolerance: float = 0.1) -> tuple[float, float]:
+def image_agreement(
+    a: np.ndarray, b: np.ndarray, tolerance: float = 0.1, mask: np.ndarray | None = None
+) -> tuple[float, float]:
     """How close two uint8 RGB images are (docs/rendering.md): the mean absolute difference of
     their values in [0, 1], and the fraction of pixels whose channels all differ by at most
-    `tolerance`."""
+    `tolerance`; over the pixels of `mask` (H, W) if given."""
     a = np.asarray(a, np.float64) / 255
     b = np.asarray(b, np.float64) / 255
     if a.shape != b.shape:
         raise ValueError(f"images differ in shape: {a.shape} and {b.shape}")
     diff = np.abs(a - b)
+    if mask is not None:
+        diff = diff[np.asarray(mask, bool)]
     return float(diff.mean()), float(np.mean(diff.max(axis=-1) <= tolerance))
 
 

@@ -102,7 +102,13 @@ def measure(name: str, batch: int, size: int, args, device: str) -> dict:
     log(f"[{name} batch {n} {size}x{size}] building the renderer ...")
     start = time.perf_counter()
     pixel_env = rendering.PixelObservations(
-        env, camera=args.camera, width=size, height=size, depth=args.depth, shadows=args.shadows
+        env,
+        camera=args.camera,
+        width=size,
+        height=size,
+        depth=args.depth,
+        shadows=args.shadows,
+        graph_mode=args.graph_mode,
     )
     build_s = time.perf_counter() - start
     key = jax.random.key(0)
@@ -165,6 +171,7 @@ def measure(name: str, batch: int, size: int, args, device: str) -> dict:
         "camera": args.camera,
         "depth": args.depth,
         "shadows": args.shadows,
+        "graph_mode": args.graph_mode,
         "steps_per_rollout": args.steps,
         "steps_per_s": round(steps_per_s),
         "physics_steps_per_s": None if physics_steps_per_s is None else round(physics_steps_per_s),
@@ -213,6 +220,7 @@ def main(argv=None) -> int:
     p.add_argument("--camera", default="corner")
     p.add_argument("--depth", action="store_true", help="render depth too")
     p.add_argument("--shadows", action="store_true", help="cast the scene's shadows (a second ray per pixel)")
+    p.add_argument("--graph-mode", help="the render calls' graph capture: warp, jax or none (default: MJX's)")
     p.add_argument("--no-baseline", action="store_true", help="skip the physics-only and render-only timings")
     p.add_argument("--out", help="JSON lines file to append rows to")
     p.add_argument("--video", help="also write a video (.mp4 or .gif) of up to 10 envs of the last set")

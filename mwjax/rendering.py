@@ -262,6 +262,8 @@ class Renderer:
     goal marker at the task's goal, end-effector markers), as the reference does. `lighting`:
     "opengl" lights surfaces as MuJoCo's OpenGL renderer does (`mwjax.warp_render_lighting`),
     "mjwarp" as MJWarp's ray tracer does (brighter where textures face the lights).
+    `graph_mode`: who captures the render calls' CUDA graphs, as `PhysicsConfig.graph_mode`
+    (default: the env's).
 
     `render` and `capture`/`draw` are pure JAX functions of the state (jit them, use them in
     `lax.scan`); the batch size of each scene is fixed at construction.
@@ -280,6 +282,7 @@ class Renderer:
         samples_per_pixel: int = 1,
         sites: bool = True,
         lighting: str = "opengl",
+        graph_mode: str | None = None,
     ) -> None:
         if not (rgb or depth):
             raise ValueError("render rgb, depth or both")
@@ -308,7 +311,7 @@ class Renderer:
         self._order = jnp.asarray(np.searchsorted(ordered, rows))
         self._identity = bool(np.array_equal(ordered, rows))
         self._groups: list[tuple[int, int, _Group]] = []
-        graph_mode = env.physics.config.graph_mode
+        graph_mode = env.physics.config.graph_mode if graph_mode is None else graph_mode
         for g, group in enumerate(env.physics.groups):
             chosen = ordered[(ordered >= group.start) & (ordered < group.start + group.size)]
             if len(chosen) == 0:

@@ -16,7 +16,7 @@ import jax.numpy as jnp
 import numpy as np
 from gymnasium.vector import AutoresetMode
 
-from mwjax import benchmarks
+from mwjax import benchmarks, rendering
 from mwjax.env import Env, State
 
 Array = jax.Array
@@ -32,9 +32,24 @@ class MwjaxVectorEnv(gym.vector.VectorEnv):
     episode's last observation and info are under `final_obs` / `final_info` (masks
     `_final_obs` / `_final_info`), with NEXT_STEP they are the step's own. `final_info` and, for
     NEXT_STEP, `info` carry `episode: {"r": return, "l": length}` where an episode ended.
+
+    `render_mode` "rgb_array" / "depth_array" makes `render()` return a tuple of NumPy images of
+    the `render_envs` (default: the first env of each task; "all": every env, which Gymnasium's
+    vector `RecordVideo` needs), with the reference's `camera_name` / `camera_id` / `width` /
+    `height` (`mwjax.rendering`).
     """
 
-    def __init__(self, env: Env, use_one_hot: bool = False) -> None:
+    def __init__(
+        self,
+        env: Env,
+        use_one_hot: bool = False,
+        render_mode: str | None = None,
+        render_envs: Sequence[int] | str | None = None,
+        camera_name: str | None = None,
+        camera_id: int | None = None,
+        width: int = rendering.DEFAULT_SIZE,
+        height: int = rendering.DEFAULT_SIZE,
+    ) -> None:
         if env.autoreset not in _AUTORESET.values():
             raise ValueError("the Gymnasium adapter needs autoreset 'same_step' or 'next_step'")
         self.env = env
@@ -43,8 +58,19 @@ class MwjaxVectorEnv(gym.vector.VectorEnv):
         self.task_names = env.task_names
         self.metadata = {
             "autoreset_mode": next(m for m, v in _AUTORESET.items() if v == env.autoreset),
-            "render_modes": [],
+            "render_modes": list(rendering.RENDER_MODES),
+            "render_fps": rendering.RENDER_FPS,
         }
+        if render_envs is None:
+            render_envs = [env.task_rows(task).start for task in env.task_list]
+        elif isinstance(render_envs, str):
+            if render_envs != "all":
+                raise ValueError(f"render_envs must be a list of env indices or 'all', got {render_envs!r}")
+            render_envs = range(env.num_envs)
+        self.render_mode = render_mode
+        self._frames = rendering.GymFrames(
+            env, render_mode, render_envs, camera_name, camera_id, width, height
+        )
         low, high = env.observation_bounds()
         n_tasks = len(env.task_list)
         self._one_hot = jnp.asarray(env.task_one_hot())
@@ -114,6 +140,10 @@ class MwjaxVectorEnv(gym.vector.VectorEnv):
             info.update(episode=_masked(episode, done), _episode=done)
         return self._obs(state.obs), state.reward, state.terminated, state.truncated, info
 
+    def render(self) -> tuple[np.ndarray, ...] | None:
+        frames = self._frames(self._state)
+        return None if frames is None else tuple(frames)
+
     def _obs(self, obs: Array) -> Array:
         return jnp.concatenate([obs, self._one_hot], axis=-1) if self.use_one_hot else obs
 
@@ -130,7 +160,7 @@ class MwjaxEnv(gym.Env):
     """One env of one task (`gym.make("mwjax/MT1", env_name=...)`), NumPy in and out, like the
     reference's MT1 env: a random goal variant per reset, truncation at `max_episode_steps`."""
 
-    metadata = {"render_modes": []}
+    metadata = {"render_modes": list(rendering.RENDER_MODES), "render_fps": rendering.RENDER_FPS}
 
     def __init__(
         self,
@@ -142,6 +172,11 @@ class MwjaxEnv(gym.Env):
         use_one_hot: bool = False,
         num_tasks: int = 1,
         env_id: int = 0,
+        render_mode: str | None = None,
+        camera_name: str | None = None,
+        camera_id: int | None = None,
+        width: int = rendering.DEFAULT_SIZE,
+        height: int = rendering.DEFAULT_SIZE,
     ) -> None:
         self.env = Env(
             "MT1",
@@ -169,6 +204,13 @@ class MwjaxEnv(gym.Env):
         self._step = jax.jit(self.env.step, donate_argnums=0)  # as in MwjaxVectorEnv
         self._key = jax.random.key(0 if seed is None else seed)
         self._state: State | None = None
+        self.render_mode = render_mode
+        self._frames = rendering.GymFrames(self.env, render_mode, [0], camera_name, camera_id, width, height)
+
+    def render(self) -> np.ndarray | None:
+        """The reference's `render()`: an `(H, W, 3)` uint8 image, or `(H, W)` depth buffer."""
+        frames = self._frames(self._state)
+        return None if frames is None else frames[0]
 
     def reset(
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
@@ -214,6 +256,7 @@ def make_vector(
     task_select: str | None = None,
     array_type: str = "numpy",
     vector_strategy: str | None = None,
+    **render: Any,
 ) -> gym.vector.VectorEnv:
     """The Gymnasium vector env of a task set split, with the reference's kwargs.
 
@@ -221,7 +264,12 @@ def make_vector(
     `num_envs` (a multiple of the task count); ML sets take `meta_batch_size` (or `num_envs`),
     default 20 where 20 is a multiple of the split's task count, else one env per task.
     `vector_strategy` is accepted for compatibility and ignored: the whole batch is one device call.
+    `render` takes `MwjaxVectorEnv`'s rendering kwargs (`render_mode`, `render_envs`, `camera_name`,
+    `camera_id`, `width`, `height`).
     """
+    unknown = set(render) - {"render_mode", "render_envs", "camera_name", "camera_id", "width", "height"}
+    if unknown:
+        raise TypeError(f"make_vector() got unexpected keyword arguments {sorted(unknown)}")
     del vector_strategy
     bench = benchmarks.benchmark(benchmark, task)
     n_tasks = len(bench.tasks(split))
@@ -263,7 +311,7 @@ def make_vector(
         goal_sampling=None if task_select is None else _TASK_SELECT[task_select],
         variants_per_task=total_tasks_per_cls,
     )
-    vector = MwjaxVectorEnv(env, use_one_hot=use_one_hot)
+    vector = MwjaxVectorEnv(env, use_one_hot=use_one_hot, **render)
     if array_type == "jax":
         return vector
     if array_type == "numpy":

@@ -1,8 +1,16 @@
 """mwjax: Meta-World+ as a batched, jittable simulator on MJX-Warp."""
 
-from mwjax.env import Env, State, make
-from mwjax.physics import PhysicsConfig
-from mwjax.wrappers.gymnasium import register_envs
+import os
+
+from mwjax import determinism
+
+# Before any MJWarp kernel module exists: the mode is a module option fixed when it is built.
+if os.environ.get("MWJAX_DETERMINISTIC") == "1":
+    determinism.enable()
+
+from mwjax.env import Env, State, make  # noqa: E402
+from mwjax.physics import PhysicsConfig  # noqa: E402
+from mwjax.wrappers.gymnasium import register_envs  # noqa: E402
 
 register_envs()
 

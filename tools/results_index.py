@@ -46,7 +46,7 @@ KINDS: dict[str, tuple[tuple[str, ...], str]] = {
         "Warp's dropped-buffer flags and constraint rows per task (`benchmarks/stress_buffers.py`)",
     ),
     "profile": (("profile-", "gpu-probes-"), "where the step's time goes (`benchmarks/profile_*.py`)"),
-    "determinism": (("determinism-",), "run-to-run repeatability on the GPU (`tools/determinism.py`)"),
+    "determinism": (("determinism-",), "run-to-run repeatability on the GPU (`benchmarks/determinism.py`)"),
     "reference": (("reference-",), "measurements of the reference itself (metaworld 3.1.1)"),
     "train": (("train-",), "multi-task PPO runs (`examples/train_mt_ppo.py`, `docs/training.md`)"),
 }

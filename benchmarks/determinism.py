@@ -1,0 +1,134 @@
+"""Are two runs bit-identical? The same seeded rollout in separate processes, hashed step by step.
+
+Each process builds a task set, runs `--steps` env steps of seeded uniform random actions (500:
+whole episodes, autoreset included) and fingerprints every step on device: the bits of the
+observations, rewards, success flags and every scene's qpos and qvel, mixed into a 32-bit integer
+per step with integer arithmetic only (whose sum does not depend on reduction order). The host
+hashes the per-step fingerprints (SHA-256). `--runs` processes run one after another; the script
+reports whether all hashes agree, the first step where they part, and each run's rollout time, so
+that `--deterministic` (`MWJAX_DETERMINISTIC=1` in the children: `mwjax.determinism`) against the
+default gives both the answer and its cost.
+
+    XLA_PYTHON_CLIENT_MEM_FRACTION=0.45 python benchmarks/determinism.py --set MT10 --envs-per-task 1024
+    XLA_PYTHON_CLIENT_MEM_FRACTION=0.45 python benchmarks/determinism.py --set MT10 --envs-per-task 1024 \
+        --deterministic
+"""
+
+from __future__ import annotations
+
+import argparse
+import hashlib
+import json
+import os
+import subprocess
+import sys
+import time
+
+import numpy as np
+
+
+def fingerprint(arrays: list) -> object:
+    """A 32-bit integer of the exact bits of `arrays`, independent of reduction order."""
+    import jax
+    import jax.numpy as jnp
+
+    total = jnp.uint32(0)
+    for k, x in enumerate(arrays):
+        bits = jax.lax.bitcast_convert_type(jnp.asarray(x, jnp.float32), jnp.uint32).ravel()
+        weights = jnp.arange(1, bits.size + 1, dtype=jnp.uint32) * jnp.uint32(2654435761)
+        total = total + jnp.sum(bits * weights + jnp.uint32(k), dtype=jnp.uint32)
+    return total
+
+
+def child(args: argparse.Namespace) -> None:
+    import jax
+    import jax.numpy as jnp
+    from common import tasks_arg
+
+    import mwjax
+
+    env = mwjax.make(tasks_arg(args.set), envs_per_task=args.envs_per_task, seed=args.seed)
+
+    def rollout(state: mwjax.State, key: jax.Array) -> jax.Array:
+        def body(state: mwjax.State, key: jax.Array) -> tuple:
+            state = env.step(state, jax.random.uniform(key, (env.num_envs, 4), minval=-1.0, maxval=1.0))
+            parts = [state.obs, state.reward, state.info["success"].astype(jnp.float32)]
+            parts += [p.qpos for p in state.physics] + [p.qvel for p in state.physics]
+            return state, fingerprint(parts)
+
+        return jax.lax.scan(body, state, jax.random.split(key, args.steps))[1]
+
+    state = jax.jit(env.reset)(jax.random.key(args.seed))
+    run = jax.jit(rollout).lower(state, jax.random.key(args.seed + 1)).compile()
+    jax.block_until_ready(run(state, jax.random.key(args.seed + 1)))  # Warp's first-call work
+    t0 = time.perf_counter()
+    prints = np.asarray(jax.block_until_ready(run(state, jax.random.key(args.seed + 1))))
+    seconds = time.perf_counter() - t0
+    device = jax.devices()[0]
+    print(
+        json.dumps(
+            {
+                "device": getattr(device, "device_kind", str(device)),
+                "num_envs": env.num_envs,
+                "rollout_s": seconds,
+                "env_steps_per_s": env.num_envs * args.steps / seconds,
+                "sha256": hashlib.sha256(prints.tobytes()).hexdigest(),
+                "steps": prints.tolist(),
+            }
+        )
+    )
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--set", default="MT10", help="a set name, or task names separated by commas")
+    parser.add_argument("--envs-per-task", type=int, default=16)
+    parser.add_argument("--steps", type=int, default=500)
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--runs", type=int, default=2, help="processes, one after another")
+    parser.add_argument("--deterministic", action="store_true", help="MWJAX_DETERMINISTIC=1 in the runs")
+    parser.add_argument("--out", default=None, help="JSON path for the summary")
+    parser.add_argument("--child", action="store_true", help=argparse.SUPPRESS)
+    args = parser.parse_args()
+    if args.child:
+        child(args)
+        return
+    environ = dict(os.environ, MWJAX_DETERMINISTIC="1" if args.deterministic else "0")
+    command = [
+        sys.executable,
+        __file__,
+        "--child",
+        "--set",
+        args.set,
+        "--envs-per-task",
+        str(args.envs_per_task),
+    ]
+    command += ["--steps", str(args.steps), "--seed", str(args.seed)]
+    runs = []
+    for i in range(args.runs):
+        out = subprocess.run(command, env=environ, capture_output=True, text=True)
+        if out.returncode:
+            sys.exit(f"run {i} failed:\n{out.stderr[-3000:]}")
+        runs.append(json.loads(out.stdout.strip().splitlines()[-1]))
+        print(
+            f"run {i}: {runs[-1]['sha256'][:16]}  {runs[-1]['env_steps_per_s']:,.0f} env steps/s", flush=True
+        )
+    steps = np.array([r.pop("steps") for r in runs])
+    parted = np.nonzero((steps != steps[0]).any(axis=0))[0]
+    summary = {
+        "set": args.set,
+        "deterministic": args.deterministic,
+        "identical": bool(parted.size == 0),
+        "first_differing_step": int(parted[0]) if parted.size else None,
+        "runs": runs,
+    }
+    print(json.dumps({k: v for k, v in summary.items() if k != "runs"}))
+    if args.out:
+        from common import provenance
+
+        with open(args.out, "w") as f:
+            json.dump({**provenance(), **summary}, f, indent=1)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,58 @@
+"""Opt-in bit-reproducible physics on the GPU (process-wide).
+
+On the CPU every run is bit-identical: Warp runs each kernel's threads in order. On a GPU two
+things reorder floating-point sums from run to run: Warp's atomics (contact and constraint-row
+counters, accumulations into shared arrays), whose order follows thread scheduling, and XLA's own
+scatter-adds and reductions. `enable()` turns on Warp's deterministic mode (atomics recorded and
+reduced, and counter slots assigned, in thread order: `warp.DeterministicMode.RUN_TO_RUN`) and
+XLA's deterministic ops. It is process-wide because Warp shares kernel modules between scenes and
+envs, and XLA reads its flags once, when JAX first starts a backend: set `MWJAX_DETERMINISTIC=1`
+before `import mwjax`, or call `enable()` before JAX runs anything. Kernels compile anew for the
+mode (a separate entry in Warp's cache) and run slower.
+"""
+
+from __future__ import annotations
+
+import os
+import warnings
+
+import warp
+
+XLA_FLAG = "--xla_gpu_deterministic_ops=true"
+
+
+def enable() -> None:
+    """Deterministic Warp kernels and XLA ops for the rest of the process (see the module doc)."""
+    mode = warp.DeterministicMode.RUN_TO_RUN
+    warp.config.deterministic = mode
+    # Modules that exist already (MJWarp defines many at import) take the option too; they are
+    # rebuilt, with a new hash, at their next launch.
+    for module in list(warp._src.context.user_modules.values()):
+        if module.options.get("deterministic") != mode:
+            module.options["deterministic"] = mode
+            module.mark_modified()
+            module.unload()
+    flags = os.environ.get("XLA_FLAGS", "")
+    if XLA_FLAG in flags.split():
+        return
+    if _jax_backend_started():
+        warnings.warn(
+            f"mwjax.determinism.enable(): JAX already started its backend, so XLA's reductions stay "
+            f"non-deterministic on the GPU; set MWJAX_DETERMINISTIC=1 (or XLA_FLAGS={XLA_FLAG}) "
+            "before importing jax",
+            RuntimeWarning,
+            stacklevel=2,
+        )
+        return
+    os.environ["XLA_FLAGS"] = f"{flags} {XLA_FLAG}".strip()
+
+
+def enabled() -> bool:
+    """Whether `enable()` took effect for Warp (XLA: see `XLA_FLAGS`)."""
+    return warp.config.deterministic != warp.DeterministicMode.NOT_GUARANTEED
+
+
+def _jax_backend_started() -> bool:
+    import jax._src.xla_bridge as xla_bridge
+
+    return bool(xla_bridge._backends)

@@ -1,0 +1,47 @@
+"""The GPU-determinism switch's plumbing, on the CPU: `MWJAX_DETERMINISTIC=1` puts Warp's
+kernels in deterministic mode and XLA's flag in place before JAX starts, and the physics it
+builds steps exactly as the default (the CPU is bit-reproducible either way)."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+
+import jax
+import numpy as np
+
+import mwjax
+
+ROLLOUT = """
+import os, sys, jax, jax.numpy as jnp, numpy as np, warp
+import mwjax
+from mwjax import determinism
+env = mwjax.make(["reach-v3"], envs_per_task=1, seed=0)
+state = env.reset(jax.random.key(0))
+for i in range(3):
+    state = env.step(state, jax.random.uniform(jax.random.key(i), (1, 4), minval=-1, maxval=1))
+np.save(sys.argv[1], np.asarray(state.obs))
+modules = list(warp._src.context.user_modules.values())
+assert determinism.enabled() == (os.environ.get("MWJAX_DETERMINISTIC") == "1")
+assert all(m.options["deterministic"] == warp.config.deterministic for m in modules), "a module kept its mode"
+print(os.environ.get("XLA_FLAGS", ""))
+"""
+
+
+def test_the_switch_reaches_warp_and_xla_and_steps_as_the_default(tmp_path):
+    env = mwjax.make(["reach-v3"], envs_per_task=1, seed=0)
+    state = env.reset(jax.random.key(0))
+    for i in range(3):
+        state = env.step(state, jax.random.uniform(jax.random.key(i), (1, 4), minval=-1, maxval=1))
+    environ = {k: v for k, v in os.environ.items() if k not in ("XLA_FLAGS", "MWJAX_DETERMINISTIC")}
+    out = tmp_path / "obs.npy"
+    run = subprocess.run(
+        [sys.executable, "-c", ROLLOUT, str(out)],
+        env={**environ, "MWJAX_DETERMINISTIC": "1"},
+        capture_output=True,
+        text=True,
+    )
+    assert run.returncode == 0, run.stderr[-3000:]
+    assert "--xla_gpu_deterministic_ops=true" in run.stdout
+    np.testing.assert_array_equal(np.load(out), np.asarray(state.obs))

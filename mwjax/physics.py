@@ -22,11 +22,13 @@ import warp
 from mujoco import mjx
 from mujoco.mjx.third_party.mujoco_warp import OverflowType
 
-from mwjax import warp_equality, warp_streams
+from mwjax import caches, progress, warp_equality, warp_streams
 from mwjax.models import ccd_pairs, constraint_rows, load_scene
 
 warp_streams.install()
 warp_equality.install()
+progress.install()
+caches.configure()
 
 # The `Physics.overflow` flags of buffers whose excess Warp drops (convex-collider pairs,
 # constraint rows, contacts); the other flags are limits reached (solver, EPA horizon).

@@ -7,7 +7,10 @@
    builds land there), then timed. Compile time is reported on its own, never as throughput.
 
 On a GPU (set XLA_PYTHON_CLIENT_MEM_FRACTION=0.45 so that Warp gets memory) the experts run 50
-episodes per task; on the CPU, where the physics is ~1000x slower, one episode per task.
+episodes per MT10 task. On the CPU, where one env step of one scene's physics takes ~0.1 s, they
+run one episode per task of MT10's three tasks that share a scene (under a minute with warm
+caches). A machine's first run also builds Warp's kernels and compiles XLA's programs, which
+takes minutes; both are cached for later runs (README, Set up).
 """
 
 from __future__ import annotations
@@ -74,10 +77,10 @@ def _positive_int(value: str) -> int:
     return number
 
 
-def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
+def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="python -m mwjax",
-        description=__doc__.split("\n\n")[1].strip() if __doc__ else None,
+        description=__doc__.split("\n", 1)[1].strip() if __doc__ else None,
         formatter_class=argparse.RawDescriptionHelpFormatter,
         epilog="Defaults marked GPU/CPU depend on whether JAX sees a GPU.",
     )
@@ -109,7 +112,11 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
         default=REFERENCE_SEED,
         help=f"goal variants and random actions (default: {REFERENCE_SEED}, the reference figures' seed)",
     )
-    return parser.parse_args(argv)
+    return parser
+
+
+def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
+    return build_parser().parse_args(argv)
 
 
 @dataclasses.dataclass(frozen=True)

@@ -57,8 +57,10 @@ class _Burst:
 class _Status:
     """The process's one status line and the counters behind it (all under one lock)."""
 
-    def __init__(self, clock: Callable[[], float] = time.perf_counter) -> None:
+    def __init__(self, clock: Callable[[], float] = time.perf_counter, background: bool = True) -> None:
+        """`background=False` leaves the refreshing to explicit `tick()` calls."""
         self.clock = clock
+        self.background = background
         self.lock = threading.RLock()
         self.totals = KernelBuilds()
         self.burst: _Burst | None = None
@@ -175,7 +177,11 @@ class _Status:
 
     def _ensure_ticker(self) -> None:
         with self.lock:
-            if self.ticker is not None and self.ticker.is_alive():
+            if not self.background or (self.ticker is not None and self.ticker.is_alive()):
+                return
+            # Warp may load a module from an XLA callback while the interpreter shuts down (a
+            # program still running at exit), when no thread can start.
+            if sys.is_finalizing():
                 return
             self.ticker = threading.Thread(target=self._run_ticker, name="mwjax-progress", daemon=True)
             self.ticker.start()

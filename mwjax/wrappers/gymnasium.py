@@ -184,7 +184,9 @@ class _SingleEnv(gym.Env):
         self.env = core
         self.task_name = core.task_list[0]
         self.observation_space = gym.spaces.Box(
-            np.concatenate([low, np.zeros_like(one_hot)]), np.concatenate([high, one_hot]), dtype=np.float32
+            np.concatenate([low, np.zeros_like(one_hot)]),
+            np.concatenate([high, np.ones_like(one_hot)]),
+            dtype=np.float32,
         )
         self.action_space = gym.spaces.Box(-1.0, 1.0, (4,), dtype=np.float32)
         self._one_hot = one_hot

@@ -93,6 +93,14 @@ class _Status:
             stream.write(text + "\n")
         stream.flush()
 
+    def print_line(self, text: str) -> None:
+        """A line of its own (on a terminal, in place of the status line, redrawn at the next tick)."""
+        with self.lock:
+            stream = sys.stderr
+            stream.write(("\r" + text + "\x1b[K\n") if stream.isatty() and self.line_open else text + "\n")
+            stream.flush()
+            self.line_open = False
+
     def _render(self) -> str | None:
         now = self.clock()
         parts = []
@@ -263,11 +271,10 @@ def _native_stderr_of(function: Callable[[], Any]) -> str:
 
 
 def _explain_cuda_warning(text: str) -> None:
-    for line in text.splitlines(keepends=True):
+    for line in text.splitlines():
         if _CUDA_WARNING in line:
             line = (
                 "mwjax: no NVIDIA CUDA driver found, so Warp runs the physics on the CPU "
-                "(slow: the CPU path is for tests and debugging)\n"
+                "(slow: the CPU path is for tests and debugging)"
             )
-        sys.stderr.write(line)
-    sys.stderr.flush()
+        _STATUS.print_line(line)

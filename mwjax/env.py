@@ -361,7 +361,14 @@ class Env:
         return dataclasses.replace(state, obs=obs, reward=reward, info=info, constants=constants)
 
     def step(self, state: State, action: Array) -> State:
-        """One env step for the whole batch (5 physics steps), with rewards and autoreset."""
+        """One env step for the whole batch (5 physics steps), with rewards and autoreset.
+
+        `action`: `(num_envs, 4)` floats in [-1, 1] (an array, or nested lists). Besides the task's
+        reward terms and `success`, `state.info` holds per env: `episode_return` and
+        `episode_length` (the episode's return and steps so far, including this step; at an
+        autoreset, the finished episode's), `invalid_action` (this step's action had NaN or inf
+        and was replaced by zeros), `physics_overflow` (Warp's `OverflowType` flags of this step)
+        and `final_obs` (the last observation of an episode that ended at this step)."""
         action = self._check_action(action)
         valid = jnp.all(jnp.isfinite(action), axis=-1)
         action = jnp.where(valid[:, None], action, 0.0)
@@ -708,7 +715,13 @@ class Env:
     # Step
 
     def _check_action(self, action: Any) -> Array:
+        if isinstance(action, (list, tuple)):
+            # Nested lists (under jit, a pytree of scalar tracers) become one array; Python floats
+            # give float32, Python ints an int array, refused below like any non-float dtype.
+            action = jnp.asarray(action)
         shape = getattr(action, "shape", None)
+        if shape is None:
+            raise ValueError(f"actions must be a ({self.num_envs}, 4) array, got {type(action).__name__}")
         if shape != (self.num_envs, 4):
             raise ValueError(f"actions must have shape ({self.num_envs}, 4), got {shape}")
         dtype = getattr(action, "dtype", None)

@@ -27,11 +27,13 @@ from mujoco.mjx.third_party.mujoco_warp import GeomType, OverflowType
 # Which geom-type pairs Warp collides without its convex collider; no public accessor.
 from mujoco.mjx.third_party.mujoco_warp._src.collision_primitive import _PRIMITIVE_COLLISIONS
 
-from mwjax import warp_equality, warp_streams
+from mwjax import caches, progress, warp_equality, warp_streams
 from mwjax.models import constraint_rows, load_scene
 
 warp_streams.install()
 warp_equality.install()
+progress.install()
+caches.configure()
 
 # The `Physics.overflow` flags of buffers whose excess Warp drops (convex-collider pairs,
 # constraint rows, contacts); the other flags are limits reached (solver, EPA horizon).

@@ -286,6 +286,20 @@ def test_bad_actions(env, compiled, episode):
         env.step(state, jnp.full((env.num_envs, 4), jnp.nan))
 
 
+def test_actions_as_nested_lists(env):
+    """Lists work like arrays, also under jit (traced here, nothing compiled or run): a jitted
+    call sees a list as a pytree of scalars, which used to fail as "shape None"."""
+    state = jax.eval_shape(env.reset, jax.random.key(0))
+    stepped = jax.eval_shape(env.step, state, [[0.5, 0.0, -0.5, 1.0]] * env.num_envs)
+    assert stepped.obs.shape == (env.num_envs, 39)
+    with pytest.raises(ValueError, match="floating"):
+        jax.eval_shape(env.step, state, [[0, 0, 0, 1]] * env.num_envs)
+    with pytest.raises(ValueError, match=r"shape \(6, 4\), got \(\)"):
+        jax.eval_shape(env.step, state, 0.5)
+    with pytest.raises(ValueError, match=r"a \(6, 4\) array, got str"):
+        env.step(state, "left")
+
+
 def test_nan_action_under_jit_is_a_flagged_noop(env, compiled, episode):
     _, step = compiled
     state = episode[0]

@@ -3,6 +3,8 @@ observability, truncation, terminate_on_success, ML goal cycling, seeding, Gymna
 
 from __future__ import annotations
 
+import importlib.util
+
 import gymnasium as gym
 import jax.numpy as jnp
 import numpy as np
@@ -129,14 +131,30 @@ def test_bad_arguments_are_refused(same_step):
         same_step.step(np.zeros((3, 4), np.float32))
     with pytest.raises(ValueError, match="NaN"):
         same_step.step(np.full((4, 4), np.nan, np.float32))
+    with pytest.raises(ValueError, match="floating point"):
+        same_step.step(np.zeros((4, 4), np.int64))
     with pytest.raises(ValueError, match="multiple"):
         gym.make_vec("mwjax/MT10", num_envs=15)
+    for bad in (0, -10, 2.5, True):
+        with pytest.raises(ValueError, match="num_envs .* must be a positive int"):
+            gym.make_vec("mwjax/MT10", num_envs=bad)
+    with pytest.raises(ValueError, match="envs_per_task must be a positive int"):
+        gym.make_vec("mwjax/MT10", envs_per_task=0)
+    with pytest.raises(ValueError, match="meta_batch_size must be a positive int"):
+        gym.make_vec("mwjax/ML10-train", meta_batch_size=0)
     with pytest.raises(ValueError, match="multiple"):
         gym.make_vec("mwjax/ML10-train", meta_batch_size=15)
     with pytest.raises(ValueError, match="cannot contain"):
         gym.make_vec("mwjax/custom-ml-envs", train_envs=TASKS, test_envs=["push-v3"])
     with pytest.raises(ValueError, match="unknown task"):
         gym.make_vec("mwjax/MT1", env_name="reach-v2")
+
+
+def test_torch_arrays_need_the_torch_extra():
+    if importlib.util.find_spec("torch") is not None:
+        pytest.skip("PyTorch is installed")
+    with pytest.raises(ModuleNotFoundError, match=r"mwjax\[torch\]"):
+        gym.make_vec("mwjax/MT10", array_type="torch")
 
 
 @pytest.fixture(scope="module")
@@ -193,6 +211,8 @@ def test_single_env_passes_gymnasium_check():
     check_env(env.unwrapped, skip_render_check=True)
     obs, _ = env.reset(seed=0)
     assert env.observation_space.contains(obs)
+    with pytest.raises(ValueError, match="floating point"):
+        env.step(np.zeros(4, np.int64))
     for step in range(20):
         obs, reward, terminated, truncated, info = env.step(env.action_space.sample())
         assert isinstance(reward, float) and truncated == (step == 19)

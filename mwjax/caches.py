@@ -1,0 +1,31 @@
+"""Persistent compile caches, on by default, so that only a machine's first run compiles.
+
+- JAX's compilation cache (XLA programs taking over a second to compile, JAX's default
+  threshold) goes to `$XDG_CACHE_HOME/mwjax/jax` (`~/.cache/mwjax/jax`), unless a directory is
+  already set (`JAX_COMPILATION_CACHE_DIR` or `jax.config`) or `MWJAX_NO_CACHE=1`.
+- Warp caches its kernel modules itself, in `~/.cache/warp` (or `WARP_CACHE_PATH`).
+
+Sharing a cache directory with users you do not trust lets them run code as you (JAX's warning).
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import jax
+
+
+def jax_cache_dir() -> Path:
+    """Where mwjax puts JAX's compilation cache when nothing else chose a place."""
+    base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
+    return Path(base) / "mwjax" / "jax"
+
+
+def configure() -> None:
+    """Turn JAX's persistent compilation cache on (see the module docstring). It takes effect
+    for every later compile, also when something was compiled before."""
+    if os.environ.get("MWJAX_NO_CACHE", "0") not in ("", "0"):
+        return
+    if jax.config.jax_compilation_cache_dir is None:
+        jax.config.update("jax_compilation_cache_dir", str(jax_cache_dir()))

@@ -100,7 +100,9 @@ class MwjaxVectorEnv(gym.vector.VectorEnv):
             "render_modes": list(rendering.RENDER_MODES),
             "render_fps": rendering.RENDER_FPS,
         }
-        if render_envs is None:
+        if render_mode is None:
+            render_envs = ()
+        elif render_envs is None:
             render_envs = [env.task_rows(task).start for task in env.task_list]
         elif isinstance(render_envs, str):
             if render_envs != "all":

@@ -17,7 +17,8 @@ import numpy as np
 from gymnasium.vector import AutoresetMode
 
 from mwjax import benchmarks
-from mwjax.env import Env, State
+from mwjax.env import Env, State, make
+from mwjax.sharding import ShardedEnv
 
 Array = jax.Array
 _AUTORESET = {AutoresetMode.SAME_STEP: "same_step", AutoresetMode.NEXT_STEP: "next_step"}
@@ -34,7 +35,7 @@ class MwjaxVectorEnv(gym.vector.VectorEnv):
     NEXT_STEP, `info` carry `episode: {"r": return, "l": length}` where an episode ended.
     """
 
-    def __init__(self, env: Env, use_one_hot: bool = False) -> None:
+    def __init__(self, env: Env | ShardedEnv, use_one_hot: bool = False) -> None:
         if env.autoreset not in _AUTORESET.values():
             raise ValueError("the Gymnasium adapter needs autoreset 'same_step' or 'next_step'")
         self.env = env
@@ -214,6 +215,7 @@ def make_vector(
     task_select: str | None = None,
     array_type: str = "numpy",
     vector_strategy: str | None = None,
+    devices: Sequence[jax.Device] | None = None,
 ) -> gym.vector.VectorEnv:
     """The Gymnasium vector env of a task set split, with the reference's kwargs.
 
@@ -221,6 +223,8 @@ def make_vector(
     `num_envs` (a multiple of the task count); ML sets take `meta_batch_size` (or `num_envs`),
     default 20 where 20 is a multiple of the split's task count, else one env per task.
     `vector_strategy` is accepted for compatibility and ignored: the whole batch is one device call.
+    `devices` splits the batch over them (`mwjax.make`'s): rows are then laid out device by device
+    (`env.row_order`; `task_names` and the one-hot ids follow).
     """
     del vector_strategy
     bench = benchmarks.benchmark(benchmark, task)
@@ -251,9 +255,10 @@ def make_vector(
     if terminate_on_success is None:
         # The reference's ML test envs terminate on success, its train and MT envs do not.
         terminate_on_success = bench.meta_learning and split == "test"
-    env = Env(
+    env = make(
         bench,
         envs_per_task=total // n_tasks,
+        devices=devices,
         seed=0 if seed is None else seed,
         split=split,
         reward_version=reward_function_version,

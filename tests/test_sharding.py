@@ -51,7 +51,7 @@ def test_on_two_host_devices():
     tail = (result.stdout + result.stderr)[-6000:]
     assert result.returncode == 0, tail
     passed = re.search(r"(\d+) passed", result.stdout)
-    assert passed and int(passed.group(1)) == 5, tail  # this file's other tests, none skipped
+    assert passed and int(passed.group(1)) == 6, tail  # this file's other tests, none skipped
     print(f"child run: {time.perf_counter() - t0:.0f}s\n{result.stdout[-500:]}")
 
 
@@ -189,3 +189,45 @@ def test_gymnasium_adapter_and_evaluation_take_devices():
     mean_success, mean_return, rates, episodic = evaluation.evaluation(Agent(), envs, num_episodes=3)
     assert list(rates) == ["reach-v3"] and len(episodic["reach-v3"]) == 3
     assert np.isfinite(mean_return)
+
+
+@two_devices
+def test_data_parallel_ppo_keeps_one_policy_over_the_devices():
+    """`train_mt_ppo.py --devices 2`: each device rolls out its envs, the gradients and the
+    statistics are averaged over both, and the replicated parameters stay equal on each."""
+    sys.path.insert(0, str(Path(__file__).parents[1] / "benchmarks"))
+    import train_mt_ppo as ppo
+
+    stats = ppo.RunningStats.zeros((3,))
+    batch = jax.random.normal(jax.random.key(0), (4, 6, 3)) * jnp.arange(1.0, 4.0) + 2.0
+    mesh = jax.sharding.Mesh(np.array(jax.devices()[:2]), ("d",))
+    merge = jax.shard_map(
+        lambda b: stats.merge(b, (0, 1), "d"),
+        mesh=mesh,
+        in_specs=jax.sharding.PartitionSpec(None, "d"),
+        out_specs=jax.sharding.PartitionSpec(),
+    )
+    for a, b in zip(stats.merge(batch, (0, 1)), merge(batch), strict=True):
+        np.testing.assert_allclose(np.asarray(a), np.asarray(b), rtol=1e-5)
+
+    config = ppo.Config(
+        task_set=("reach-v3", "push-v3"),
+        envs_per_task=4,
+        unroll=6,
+        minibatches=2,
+        epochs=2,
+        max_episode_steps=10,
+        architecture="multi-head",
+        devices=2,
+    )
+    trainer = ppo.Trainer(config)
+    carry = trainer.init(jax.random.key(0))
+    carry, metrics = trainer.train_chunk(carry, 2)
+    # Every env (on either device) ended one episode; the statistics saw both devices' rows.
+    np.testing.assert_array_equal(metrics.episodes, [config.envs_per_task] * 2)
+    assert float(carry.norm.obs.count) == 2 * config.unroll * trainer.env.num_envs
+    assert np.isfinite(metrics.loss)
+    for leaf in jax.tree.leaves(carry.params):
+        shards = [np.asarray(s.data) for s in leaf.addressable_shards]
+        assert len(shards) == 2 and np.array_equal(shards[0], shards[1])
+    _split_over(carry.env_state.obs, trainer.env.devices, trainer.env.num_envs // 2)

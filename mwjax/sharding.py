@@ -40,10 +40,15 @@ from jax.sharding import PartitionSpec as P
 
 from mwjax import env as env_module
 from mwjax.env import Env, State
+from mwjax.physics import PhysicsConfig
 from mwjax.tasks.spec import Kinematics
 
 Array = jax.Array
 AXIS = "envs"
+# Warp 1.18's staged graph modes keep the graph they capture on a call's first run in the call's
+# descriptor (one per traced call) and replay it on every later run, whatever the device; its
+# "warp" mode keys graphs by device, call and buffers (warp/_src/jax/ffi.py, `ffi_callback`).
+_ONE_GRAPH_PER_CALL = ("warp_staged", "warp_staged_ex")
 
 
 class ShardedEnv:
@@ -63,6 +68,12 @@ class ShardedEnv:
             raise ValueError(
                 f"envs_per_task={envs_per_task} is not a multiple of the {n} devices: every device "
                 "steps an equal share of every task"
+            )
+        graph_mode = (kwargs.get("physics") or PhysicsConfig()).graph_mode
+        if n > 1 and graph_mode in _ONE_GRAPH_PER_CALL:
+            raise ValueError(
+                f"graph_mode={graph_mode!r} keeps one CUDA graph per traced Warp call, which every "
+                "device would replay; use 'warp' (one graph per device), 'jax' or 'none'"
             )
         self.devices = devices
         self.mesh = Mesh(np.array(devices), (AXIS,))

@@ -24,7 +24,7 @@ import numpy as np
 import pytest
 
 import mwjax
-from mwjax import evaluation
+from mwjax import evaluation, policies
 from mwjax.wrappers.gymnasium import make_vector
 
 CHILD = "MWJAX_SHARDING_CHILD"
@@ -104,6 +104,10 @@ def test_sharded_rollout_is_the_unsharded_one_bit_for_bit(pair):
     key = jax.random.key(11)
     expected, state = jax.jit(env.reset)(key), jax.jit(sharded.reset)(key)
     _same(expected, sharded, state)
+    # The experts act on each row by its task, wherever the row lives.
+    actions = np.asarray(policies.expert_policy(env)(None, expected.obs, None))
+    sharded_actions = np.asarray(policies.expert_policy(sharded)(None, state.obs, None))
+    np.testing.assert_array_equal(sharded_actions, actions[sharded.row_order])
     step, sharded_step = jax.jit(env.step), jax.jit(sharded.step)
     rng = np.random.default_rng(0)
     truncations = 0
@@ -143,12 +147,15 @@ def test_ml_goal_pools_follow_the_rows():
 
 
 @two_devices
-def test_batch_must_split_evenly():
+def test_what_cannot_be_sharded_says_why():
     devices = jax.devices()[:2]
     with pytest.raises(ValueError, match="not a multiple of the 2 devices"):
         mwjax.make(["reach-v3"], envs_per_task=3, devices=devices)
     with pytest.raises(ValueError, match="distinct"):
         mwjax.make(["reach-v3"], envs_per_task=2, devices=[devices[0], devices[0]])
+    staged = mwjax.PhysicsConfig(graph_mode="warp_staged")
+    with pytest.raises(ValueError, match="one CUDA graph per traced Warp call"):
+        mwjax.make(["reach-v3"], envs_per_task=2, devices=devices, physics=staged)
 
 
 @two_devices

@@ -139,6 +139,8 @@ def measure(args: argparse.Namespace) -> dict:
         "reset_compile_s": reset_compile_s,
         "step_compile_s": compile_s,
         "success_steps_last_rollout": int(successes),
+        # Comparable across counts (random actions): a sanity check that every count simulates alike.
+        "success_steps_per_env": int(successes) / env.num_envs,
         "overflow_envs": overflow_envs,
         "valid": overflow_envs == 0,
         "jax": jax.__version__,

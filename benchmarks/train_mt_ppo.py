@@ -224,8 +224,10 @@ class Trainer:
         self.one_hot = jnp.asarray(local_env.task_one_hot())
         per_task = self.rows_per_task * config.unroll
         if per_task % config.minibatches:
+            where = "" if self.devices is None else " on each device"
             raise ValueError(
-                f"{per_task} samples per task and update do not split into {config.minibatches} minibatches"
+                f"{per_task} samples per task and update{where} do not split into "
+                f"{config.minibatches} minibatches"
             )
         self.optimizer = optax.chain(
             optax.clip_by_global_norm(config.max_grad_norm), optax.adam(config.learning_rate)

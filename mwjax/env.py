@@ -298,9 +298,12 @@ class Env:
         all_rows = jnp.ones(self.num_envs, bool)
         return self._reset_rows(self.physics.make_data(), rand_vecs, None, order, cursor, keys, all_rows)
 
-    def replace(self, **changes: Any) -> Env:
-        """The same env with some constructor arguments changed (a new, separately compiled env)."""
-        return Env(**{**self.config, **changes})
+    def replace(self, **changes: Any) -> Env | ShardedEnv:
+        """The same env with some constructor arguments changed (a new, separately compiled env);
+        `devices=` splits it over devices, as `make`'s."""
+        config = {**self.config, **changes}
+        devices = config.pop("devices", None)
+        return Env(**config) if devices is None else make(devices=devices, **config)
 
     def restart(self, state: State, mask: Array | None = None) -> State:
         """Fresh episodes in the rows where `mask` (all by default), as an autoreset starts them:

@@ -95,6 +95,9 @@ def test_layout(pair):
     np.testing.assert_array_equal(sharded.task_one_hot(), env.task_one_hot()[sharded.row_order])
     assert sharded.task_rows("drawer-open-v3").tolist() == [2, 3, 8, 9]
     assert [g.size for g in sharded.physics.groups] == [2, 4]  # per device
+    again = env.replace(devices=sharded.devices)
+    assert type(again) is type(sharded) and again.row_order.tolist() == sharded.row_order.tolist()
+    assert type(sharded.replace(devices=None)) is type(env)
 
 
 @two_devices

@@ -3,6 +3,7 @@
     python examples/train_mt_ppo.py                 # the documented run (GPU, one 10-minute call)
     python examples/train_mt_ppo.py --set reach-v3,push-v3 --envs-per-task 2 --unroll 4 \
         --minibatches 2 --updates 2 --eval-episodes 1  # a CPU smoke run
+    python examples/train_mt_ppo.py --devices all    # data parallel over every local GPU
 
 One `lax.scan` runs `--log-every` PPO updates (each: `--unroll` steps of every env, GAE, several
 epochs of minibatch updates) without leaving the device; the host only prints progress between
@@ -12,6 +13,12 @@ rewards differ in scale), and advantages are normalized per task, so that no tas
 drowns out another's. At the end the policy's mean action is evaluated with
 `mwjax.evaluation.evaluator` (50 episodes per task, one per goal variant, success at any step),
 and the learning curve is saved as JSON and PNG in `benchmarks/results/train/`.
+
+`--devices N` (or `all`) splits the envs over N local devices (`mwjax.make(..., devices=)`, an
+equal share of every task on each) and runs each update data parallel under `jax.shard_map`:
+every device rolls out and learns on its own envs, with the gradients, the normalizers' and the
+advantages' statistics and the metrics averaged or summed over the devices (`pmean`/`psum`).
+`--envs-per-task` is the total over the devices.
 
 Needs the `train` extra (optax); the PNG needs matplotlib.
 """
@@ -35,9 +42,11 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import optax
+from jax.sharding import PartitionSpec as P
 
 import mwjax
 from mwjax.evaluation import evaluator
+from mwjax.sharding import AXIS
 
 RESULTS = Path(__file__).parents[1] / "benchmarks" / "results" / "train"
 Array = jax.Array
@@ -72,6 +81,8 @@ class Config:
     reward_version: str = "v2"
     max_episode_steps: int = 500
     seed: int = 0
+    # Local devices to split the envs over (data parallel); 1 runs the single-device program.
+    devices: int = 1
 
 
 class RunningStats(NamedTuple):
@@ -86,9 +97,15 @@ class RunningStats(NamedTuple):
     def zeros(shape: tuple[int, ...]) -> RunningStats:
         return RunningStats(jnp.zeros(shape[:-1] or ()), jnp.zeros(shape), jnp.ones(shape))
 
-    def merge(self, batch: Array, axis: tuple[int, ...]) -> RunningStats:
+    def merge(self, batch: Array, axis: tuple[int, ...], axis_name: str | None = None) -> RunningStats:
+        """With `axis_name` (inside a `shard_map`), `batch` is one device's equal share."""
         n = math.prod(batch.shape[a] for a in axis)
         mean, var = batch.mean(axis=axis), batch.var(axis=axis)
+        if axis_name is not None:
+            n = n * jax.lax.psum(1, axis_name)
+            global_mean = jax.lax.pmean(mean, axis_name)
+            var = jax.lax.pmean(var + (mean - global_mean) ** 2, axis_name)
+            mean = global_mean
         total = self.count + n
         delta = mean - self.mean
         new_mean = self.mean + delta * n / total
@@ -190,26 +207,68 @@ class Trainer:
 
     def __init__(self, config: Config) -> None:
         self.config = config
+        self.devices = jax.local_devices()[: config.devices] if config.devices > 1 else None
+        if self.devices is not None and len(self.devices) < config.devices:
+            raise ValueError(f"{config.devices} devices asked for, {len(self.devices)} present")
         self.env = mwjax.make(
             config.task_set,
             envs_per_task=config.envs_per_task,
             seed=config.seed,
             reward_version=config.reward_version,
             max_episode_steps=config.max_episode_steps,
+            devices=self.devices,
         )
+        # Sharded, an update runs under `shard_map` over this axis, each device on its own envs,
+        # which `self.rows_per_task` and `self.one_hot` (task by task, as `Env` lays them out) describe.
+        self.axis = None if self.devices is None else AXIS
+        local_env = self.env if self.devices is None else self.env.local
+        self.rows_per_task = local_env.envs_per_task
         self.n_tasks = len(self.env.task_list)
         self.obs_size = mwjax.env.OBS_SIZE + self.n_tasks
-        self.one_hot = jnp.asarray(self.env.task_one_hot())
-        per_task = self.env.envs_per_task * config.unroll
+        self.one_hot = jnp.asarray(local_env.task_one_hot())
+        per_task = self.rows_per_task * config.unroll
         if per_task % config.minibatches:
+            where = "" if self.devices is None else " on each device"
             raise ValueError(
-                f"{per_task} samples per task and update do not split into {config.minibatches} minibatches"
+                f"{per_task} samples per task and update{where} do not split into "
+                f"{config.minibatches} minibatches"
             )
         self.optimizer = optax.chain(
             optax.clip_by_global_norm(config.max_grad_norm), optax.adam(config.learning_rate)
         )
         self._init_rest = jax.jit(self._init_rest_of_carry)
-        self.train_chunk = jax.jit(self._train_chunk, static_argnums=1, donate_argnums=0)
+        chunk = self._train_chunk if self.axis is None else self._sharded_train_chunk
+        self.train_chunk = jax.jit(chunk, static_argnums=1, donate_argnums=0)
+
+    # -- data parallel: collectives over the devices (nothing without them) --------------------
+
+    def _pmean(self, x: Any) -> Any:
+        return x if self.axis is None else jax.lax.pmean(x, self.axis)
+
+    def _psum(self, x: Any) -> Any:
+        return x if self.axis is None else jax.lax.psum(x, self.axis)
+
+    def _step_env(self) -> Any:
+        """The env the rollout steps: inside the update's `shard_map`, this device's."""
+        return self.env if self.axis is None else self.env.device_env()
+
+    @staticmethod
+    def _carry_specs() -> Carry:
+        """How a sharded run splits the carry: the envs' rows over the devices, the rest replicated."""
+        rows = P(AXIS)
+        return Carry(P(), P(), P(), rows, rows, rows, rows, P())
+
+    def _sharded_train_chunk(self, carry: Carry, updates: int) -> tuple[Carry, Metrics]:
+        """`_train_chunk` on every device, on its envs; the rest of the carry is replicated."""
+        specs = self._carry_specs()
+        run = jax.shard_map(
+            lambda c: self._train_chunk(c, updates),
+            mesh=self.env.mesh,
+            in_specs=(specs,),
+            out_specs=(specs, P()),
+            check_vma=False,
+        )
+        return run(carry)
 
     # -- the policy ---------------------------------------------------------------------------
 
@@ -223,7 +282,15 @@ class Trainer:
             log_std=jnp.full((self.n_tasks, 4), cfg.init_log_std),
             value=_mlp_init(value_key, [*sizes, 1], 1.0, own, self.n_tasks),
         )
-        return self._init_rest(params, env_key, cut_key, key)
+        carry = self._init_rest(params, env_key, cut_key, key)
+        if self.axis is not None:  # placed as `train_chunk` returns it, so it compiles once
+            shardings = jax.tree.map(
+                lambda spec: jax.sharding.NamedSharding(self.env.mesh, spec),
+                self._carry_specs(),
+                is_leaf=lambda x: isinstance(x, P),
+            )
+            carry = jax.device_put(carry, shardings)
+        return carry
 
     def _init_rest_of_carry(self, params: Params, env_key: Array, cut_key: Array, key: Array) -> Carry:
         cfg = self.config
@@ -261,21 +328,27 @@ class Trainer:
         return _mlp(params.value, obs)[..., 0]
 
     def _per_task(self, x: Array) -> Array:
-        """`(unroll, num_envs)` as `(unroll, tasks, envs_per_task)`."""
-        return x.reshape(x.shape[0], self.n_tasks, self.env.envs_per_task, *x.shape[2:])
+        """`(unroll, num_envs)` as `(unroll, tasks, envs_per_task)` (a device's envs, sharded)."""
+        return x.reshape(x.shape[0], self.n_tasks, self.rows_per_task, *x.shape[2:])
 
     def policy(self, params_and_norm: tuple[Params, Normalizers], obs: Array, key: Array) -> Array:
-        """The deterministic (mean) action for a task-major batch of observations with one-hot
-        task ids appended, as `mwjax.evaluation.evaluator(..., one_hot=True)` calls a policy."""
+        """The deterministic (mean) action for a batch of observations with one-hot task ids
+        appended, as `mwjax.evaluation.evaluator(..., one_hot=True)` calls a policy: task-major,
+        or sharded, device by device (each device's rows task-major)."""
         del key
         params, norm = params_and_norm
-        mean = self._mean(params, self._by_task(self._normalize(norm, obs)))
-        return jnp.clip(mean.reshape(obs.shape[0], 4), -1.0, 1.0)
+        n = 1 if self.devices is None else len(self.devices)
+        # (devices, tasks, rows) -> (tasks, devices * rows): each task's rows together.
+        obs = self._normalize(norm, obs).reshape(n, self.n_tasks, -1, obs.shape[-1]).swapaxes(0, 1)
+        mean = self._mean(params, obs.reshape(self.n_tasks, -1, obs.shape[-1]))
+        mean = mean.reshape(self.n_tasks, n, -1, 4).swapaxes(0, 1)
+        return jnp.clip(mean.reshape(-1, 4), -1.0, 1.0)
 
     # -- one PPO update -------------------------------------------------------------------------
 
     def _rollout(self, carry: Carry) -> tuple[Carry, Transition, Array, Array]:
         params, norm = carry.params, carry.norm
+        env = self._step_env()
 
         def step(c: tuple, key: Array) -> tuple[tuple, tuple[Transition, Array, Array]]:
             env_state, episode_success, first_cut = c
@@ -286,7 +359,7 @@ class Trainer:
             log_prob = _log_prob(mean, params.log_std, action).reshape(-1)
             value = self._value(params, obs).reshape(-1)
             action = action.reshape(-1, 4)
-            env_state = self.env.step(env_state, jnp.clip(action, -1.0, 1.0))
+            env_state = env.step(env_state, jnp.clip(action, -1.0, 1.0))
             full_length = env_state.truncated
             cut = env_state.steps == first_cut
             truncated = full_length | cut
@@ -304,21 +377,21 @@ class Trainer:
                 jnp.where(truncated, final_value, 0.0),
             )
             if self.config.staggered_starts:
-                env_state = jax.lax.cond(
-                    jnp.any(cut), lambda s: self.env.restart(s, cut), lambda s: s, env_state
-                )
+                env_state = jax.lax.cond(jnp.any(cut), lambda s: env.restart(s, cut), lambda s: s, env_state)
             # Training success counts full-length episodes only; cut ones had less time.
             ended = full_length & success
             next_c = (env_state, success & ~truncated, jnp.where(truncated, -1, first_cut))
             return next_c, (transition, full_length, ended)
 
         key, rollout_key = jax.random.split(carry.key)
+        if self.axis is not None:  # each device explores with its own noise
+            rollout_key = jax.random.fold_in(rollout_key, jax.lax.axis_index(self.axis))
         keys = jax.random.split(rollout_key, self.config.unroll)
         (env_state, episode_success, first_cut), (batch, ended, ended_success) = jax.lax.scan(
             step, (carry.env_state, carry.episode_success, carry.first_cut), keys
         )
-        episodes = self._per_task(ended).sum(axis=(0, 2))
-        successes = self._per_task(ended_success).sum(axis=(0, 2))
+        episodes = self._psum(self._per_task(ended).sum(axis=(0, 2)))
+        successes = self._psum(self._per_task(ended_success).sum(axis=(0, 2)))
         carry = carry._replace(
             env_state=env_state, episode_success=episode_success, first_cut=first_cut, key=key
         )
@@ -333,8 +406,8 @@ class Trainer:
             return jnp.where(truncated, 0.0, running), running
 
         running, returns = jax.lax.scan(accumulate, carry.running_return, (batch.reward, batch.truncated))
-        stats = carry.norm.returns.merge(self._per_task(returns).transpose(0, 2, 1), axis=(0, 1))
-        scale = jnp.repeat(jnp.sqrt(stats.var + 1e-8), self.env.envs_per_task)
+        stats = carry.norm.returns.merge(self._per_task(returns).transpose(0, 2, 1), (0, 1), self.axis)
+        scale = jnp.repeat(jnp.sqrt(stats.var + 1e-8), self.rows_per_task)
         norm = carry.norm._replace(returns=stats)
         return carry._replace(norm=norm, running_return=running), batch.reward / scale
 
@@ -383,14 +456,19 @@ class Trainer:
         carry, rewards = self._scaled_rewards(carry, batch)
         advantages, targets = self._advantages(carry.params, carry.norm, carry.env_state, batch, rewards)
         per_task = self._per_task(advantages)
-        per_task = (per_task - per_task.mean(axis=(0, 2), keepdims=True)) / (
-            per_task.std(axis=(0, 2), keepdims=True) + 1e-8
-        )
+        if self.axis is None:
+            per_task = (per_task - per_task.mean(axis=(0, 2), keepdims=True)) / (
+                per_task.std(axis=(0, 2), keepdims=True) + 1e-8
+            )
+        else:  # each task's moments over every device's samples
+            mean = self._pmean(per_task.mean(axis=(0, 2), keepdims=True))
+            var = self._pmean(((per_task - mean) ** 2).mean(axis=(0, 2), keepdims=True))
+            per_task = (per_task - mean) / (jnp.sqrt(var) + 1e-8)
         advantages = per_task.reshape(advantages.shape)
         # The loss sees observations as the rollout's policy saw them; the statistics of this
         # rollout then join the running ones, for the next rollouts.
         env_obs = batch.obs[..., : mwjax.env.OBS_SIZE]
-        norm = carry.norm._replace(obs=carry.norm.obs.merge(env_obs, axis=(0, 1)))
+        norm = carry.norm._replace(obs=carry.norm.obs.merge(env_obs, (0, 1), self.axis))
         batch = batch._replace(obs=self._normalize(carry.norm, batch.obs))
 
         # `(tasks, unroll * envs_per_task, ...)`: every minibatch takes as many samples of each task.
@@ -407,6 +485,7 @@ class Trainer:
                 params, opt_state = c
                 mb, adv, tgt = jax.tree.map(lambda x: x[:, idx], by_task)
                 (loss, kl), grads = jax.value_and_grad(self._loss, has_aux=True)(params, mb, adv, tgt)
+                grads = self._pmean(grads)  # data parallel: the mean over every device's minibatch
                 updates, opt_state = self.optimizer.update(grads, opt_state, params)
                 return (optax.apply_updates(params, updates), opt_state), (loss, kl)
 
@@ -417,7 +496,7 @@ class Trainer:
             epoch, (carry.params, carry.opt_state), jax.random.split(epoch_key, cfg.epochs)
         )
         carry = carry._replace(params=params, opt_state=opt_state, norm=norm, key=key)
-        return carry, loss.mean(), kl.mean()
+        return carry, self._pmean(loss.mean()), self._pmean(kl.mean())
 
     def _train_chunk(self, carry: Carry, updates: int) -> tuple[Carry, Metrics]:
         carry, metrics = jax.lax.scan(self._update, carry, None, length=updates)
@@ -429,6 +508,8 @@ class Trainer:
         """Wall time of the learner's half of `updates` updates alone (compile excluded), on a
         stand-in rollout of the real shapes: what is left of an update is the simulator and the
         policy acting in it."""
+        if self.axis is not None:
+            raise NotImplementedError("timing the learner alone runs on one device (drop --devices)")
         batch = jax.eval_shape(self._rollout, carry)[1]
         keys = iter(jax.random.split(jax.random.key(0), len(jax.tree.leaves(batch))))
         batch = jax.tree.map(
@@ -614,6 +695,9 @@ def main() -> None:
         "--time-learner", action="store_true", help="after the evaluation, time the learner alone"
     )
     parser.add_argument(
+        "--devices", default="1", help="local devices to train on, data parallel: a count or 'all'"
+    )
+    parser.add_argument(
         "--out", default=None, help="result stem (default: benchmarks/results/train/train-...)"
     )
     args = parser.parse_args()
@@ -633,6 +717,7 @@ def main() -> None:
             staggered_starts=args.staggered_starts,
             reward_version=args.reward_version,
             seed=seed,
+            devices=jax.local_device_count() if args.devices == "all" else int(args.devices),
         )
         run = train(config, args.minutes, args.log_every, args.updates, args.eval_episodes, args.time_learner)
         run.pop("params")

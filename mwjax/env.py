@@ -11,7 +11,7 @@ import dataclasses
 import functools
 from collections.abc import Mapping, Sequence
 from importlib import resources
-from typing import Any, NamedTuple
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import jax
 import jax.numpy as jnp
@@ -21,6 +21,9 @@ from mwjax import benchmarks
 from mwjax.physics import Physics, PhysicsConfig, PhysicsState
 from mwjax.tasks import get_task
 from mwjax.tasks.spec import Frame, Kinematics, Placement, StepInputs, TaskSpec
+
+if TYPE_CHECKING:
+    from mwjax.sharding import ShardedEnv
 
 Array = jax.Array
 
@@ -243,7 +246,7 @@ class Env:
         """A fresh episode in every env, each from its own key. With `goal_sampling="on_reset"`
         (MT sets) every env draws one of its task's goal variants; with `"on_request"` (ML sets)
         every env shuffles its own share of them and starts on the first."""
-        keys = jax.random.split(key, self.num_envs)
+        keys = self._row_keys(key)
         order, keys = self._shuffled_pools(keys)
         cursor = jnp.zeros(self.num_envs, jnp.int32)
         if self.goal_sampling == "on_reset":
@@ -261,7 +264,7 @@ class Env:
             concrete = np.asarray(variants)
             if not np.all((concrete >= 0) & (concrete < n)):
                 raise ValueError(f"variants must lie in [0, {n})")
-        keys = jax.random.split(jax.random.key(0) if key is None else key, self.num_envs)
+        keys = self._row_keys(jax.random.key(0) if key is None else key)
         order = jnp.broadcast_to(
             jnp.arange(self._variants.shape[1], dtype=jnp.int32), (self.num_envs, self._variants.shape[1])
         )
@@ -289,15 +292,18 @@ class Env:
             raise ValueError(
                 f"rand_vecs must have shape {(self.num_envs, self._variants.shape[2])}, got {rand_vecs.shape}"
             )
-        keys = jax.random.split(jax.random.key(0) if key is None else key, self.num_envs)
+        keys = self._row_keys(jax.random.key(0) if key is None else key)
         order, keys = self._shuffled_pools(keys)
         cursor = jnp.zeros(self.num_envs, jnp.int32)
         all_rows = jnp.ones(self.num_envs, bool)
         return self._reset_rows(self.physics.make_data(), rand_vecs, None, order, cursor, keys, all_rows)
 
-    def replace(self, **changes: Any) -> Env:
-        """The same env with some constructor arguments changed (a new, separately compiled env)."""
-        return Env(**{**self.config, **changes})
+    def replace(self, **changes: Any) -> Env | ShardedEnv:
+        """The same env with some constructor arguments changed (a new, separately compiled env);
+        `devices=` splits it over devices, as `make`'s."""
+        config = {**self.config, **changes}
+        devices = config.pop("devices", None)
+        return Env(**config) if devices is None else make(devices=devices, **config)
 
     def restart(self, state: State, mask: Array | None = None) -> State:
         """Fresh episodes in the rows where `mask` (all by default), as an autoreset starts them:
@@ -410,6 +416,11 @@ class Env:
         # NEXT_STEP: an env whose episode ended at the previous call starts a new one instead.
         ended = state.terminated | state.truncated
         return jax.lax.cond(jnp.any(ended), lambda s: self._restart(s, ended), lambda s: s, stepped)
+
+    def _row_keys(self, key: Array) -> Array:
+        """One key per env, split from a reset's key (a sharded env's part on one device,
+        `mwjax.sharding`, takes its rows of the whole batch's split instead)."""
+        return jax.random.split(key, self.num_envs)
 
     def _task(self, task: str) -> _TaskRows:
         for rows in self._rows:
@@ -879,14 +890,16 @@ def make(
     seed: int = 0,
     reward_version: str = "v2",
     num_envs: int | None = None,
+    devices: Sequence[jax.Device] | None = None,
     **kwargs: Any,
-) -> Env:
+) -> Env | ShardedEnv:
     """`mwjax.make("MT10", envs_per_task=256, seed=42)`: a batched task set (see `Env`).
 
     `tasks` is a set name ("MT10", "ML45", "MT1"/"ML1" with `task=`, ...; see
     `mwjax.benchmarks.benchmark`), a list of task names or a `Benchmark`; `split` picks an ML
     set's "train" or "test" tasks. Give the batch either per task (`envs_per_task`, default 1) or
-    in total (`num_envs`, a multiple of the task count).
+    in total (`num_envs`, a multiple of the task count). `devices` (e.g. `jax.devices()`) splits
+    the batch over them, an equal share of every task on each (`mwjax.sharding.ShardedEnv`).
     """
     if num_envs is not None:
         if envs_per_task is not None:
@@ -896,6 +909,12 @@ def make(
             raise ValueError(f"num_envs={num_envs!r} is not a positive multiple of the {n_tasks} tasks")
         envs_per_task = num_envs // n_tasks
     envs_per_task = 1 if envs_per_task is None else envs_per_task
+    if devices is not None:
+        from mwjax.sharding import ShardedEnv
+
+        return ShardedEnv(
+            devices, tasks, envs_per_task=envs_per_task, seed=seed, reward_version=reward_version, **kwargs
+        )
     return Env(tasks, envs_per_task=envs_per_task, seed=seed, reward_version=reward_version, **kwargs)
 
 

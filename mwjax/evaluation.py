@@ -20,6 +20,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from mwjax.env import Env, State
+from mwjax.sharding import ShardedEnv
 
 Array = jax.Array
 Policy = Callable[[Any, Array, Array], Array]
@@ -57,24 +58,36 @@ class Timestep(NamedTuple):
     aux_policy_outputs: dict[str, np.ndarray]
 
 
-def evaluation_env(env: Env, num_episodes: int = 50) -> tuple[Env, np.ndarray]:
+def evaluation_env(env: Env | ShardedEnv, num_episodes: int = 50) -> tuple[Env | ShardedEnv, np.ndarray]:
     """`env`'s tasks, goals and reward version with `num_episodes` envs per task, for evaluation,
-    and the goal variant of each of its envs (episode j of a task on variant j mod 50)."""
+    and the goal variant of each of its envs (episode j of a task on variant j mod 50). A sharded
+    env's evaluation env has the next multiple of its device count instead (the episodes past
+    `num_episodes` run but do not count, `by_task`), on the same devices."""
     if not isinstance(num_episodes, int) or num_episodes < 1:
         raise ValueError(f"num_episodes must be a positive int, got {num_episodes!r}")
-    eval_env = env.replace(envs_per_task=num_episodes, autoreset="disabled", terminate_on_success=False)
+    n_devices = len(env.devices) if isinstance(env, ShardedEnv) else 1
+    per_task = -(-num_episodes // n_devices) * n_devices
+    eval_env = env.replace(envs_per_task=per_task, autoreset="disabled", terminate_on_success=False)
     n_variants = next(iter(eval_env.goal_variants.values())).shape[0]
-    variants = np.tile(np.arange(num_episodes) % n_variants, len(eval_env.task_list))
+    variants = np.tile(np.arange(per_task) % n_variants, len(eval_env.task_list))
+    if isinstance(eval_env, ShardedEnv):
+        variants = variants[eval_env.row_order]
     return eval_env, variants
 
 
+def by_task(eval_env: Env | ShardedEnv, values: Any, num_episodes: int) -> Any:
+    """Per-env `values` of an `evaluation_env` (rows in its order) as `(tasks, num_episodes)`."""
+    if isinstance(eval_env, ShardedEnv):
+        values = values[np.argsort(eval_env.row_order)]
+    return values.reshape(len(eval_env.task_list), eval_env.envs_per_task)[:, :num_episodes]
+
+
 def evaluator(
-    env: Env, policy: Policy, num_episodes: int = 50, one_hot: bool = False
+    env: Env | ShardedEnv, policy: Policy, num_episodes: int = 50, one_hot: bool = False
 ) -> Callable[[Any, Array], EvalResult]:
     """A jittable `(params, key) -> EvalResult` for `policy(params, obs, key) -> actions` on
     `env`'s task set (see the module docstring). `one_hot` appends task ids to observations."""
     eval_env, variants = evaluation_env(env, num_episodes)
-    n_tasks = len(eval_env.task_list)
     task_ids = jnp.asarray(eval_env.task_one_hot())
 
     def observe(obs: Array) -> Array:
@@ -99,9 +112,8 @@ def evaluator(
         init = (state, jnp.ones(eval_env.num_envs, bool), zeros, zeros.astype(jnp.int32), zeros.astype(bool))
         keys = jax.random.split(act_key, eval_env.max_episode_steps)
         (_, _, returns, lengths, success), _ = jax.lax.scan(step, init, keys)
-        shape = (n_tasks, num_episodes)
-        success = success.reshape(shape)
-        return EvalResult(success.mean(axis=1), success, returns.reshape(shape), lengths.reshape(shape))
+        success, returns, lengths = (by_task(eval_env, x, num_episodes) for x in (success, returns, lengths))
+        return EvalResult(success.mean(axis=1), success, returns, lengths)
 
     return run
 
@@ -115,12 +127,13 @@ def evaluation(
     Returns (mean success rate, mean return, success rate per task, returns per task)."""
     core = _core(envs)
     eval_env, variants = evaluation_env(core.env, num_episodes)
-    n_tasks = len(eval_env.task_list)
     one_hot = eval_env.task_one_hot() if core.use_one_hot else None
     step = jax.jit(eval_env.step)
     state = jax.jit(eval_env.reset_with_variants)(jnp.asarray(variants), jax.random.key(seed))
     agent.reset(np.ones(eval_env.num_envs, bool))
-    running = np.ones(eval_env.num_envs, bool)
+    # Only the first `num_episodes` of each task count (a sharded env may run a few more).
+    running = np.zeros(eval_env.num_envs, bool)
+    running[by_task(eval_env, np.arange(eval_env.num_envs), num_episodes).ravel()] = True
     returns = np.zeros(eval_env.num_envs)
     success = np.zeros(eval_env.num_envs, bool)
     for _ in range(eval_env.max_episode_steps):
@@ -135,8 +148,8 @@ def evaluation(
         running &= ~ended
         if not running.any():
             break
-    per_task_success = success.reshape(n_tasks, num_episodes).mean(axis=1)
-    per_task_returns = returns.reshape(n_tasks, num_episodes)
+    per_task_success = by_task(eval_env, success, num_episodes).mean(axis=1)
+    per_task_returns = by_task(eval_env, returns, num_episodes)
     rates = {task: float(r) for task, r in zip(eval_env.task_list, per_task_success, strict=True)}
     episodic = {task: r.tolist() for task, r in zip(eval_env.task_list, per_task_returns, strict=True)}
     return float(np.mean(per_task_success)), float(np.mean(per_task_returns)), rates, episodic
@@ -164,6 +177,8 @@ def metalearning_evaluation(
     observe = core._obs
     tasks = list(dict.fromkeys(adapt_env.task_names))
     task_index = np.array([tasks.index(t) for t in adapt_env.task_names])
+    # Episodes that end at the same step count in the unsharded env's row order.
+    order = np.argsort(adapt_env.row_order) if isinstance(adapt_env, ShardedEnv) else None
 
     state = jax.jit(adapt_env.reset)(jax.random.key(seed))
     rates = np.zeros((num_evals, len(tasks)))
@@ -186,7 +201,7 @@ def metalearning_evaluation(
             agent.adapt()
         state = restart(state)
         success, returns = _episodes_in_place(
-            agent, eval_step, observe, state, task_index, evaluation_episodes
+            agent, eval_step, observe, state, task_index, evaluation_episodes, order
         )
         rates[i] = success
         total_success += float(np.mean(success))
@@ -206,10 +221,13 @@ def _episodes_in_place(
     state: State,
     task_index: np.ndarray,
     num_episodes: int,
+    order: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """The reference's `evaluation` loop on the envs as they are: step until every task has
     `num_episodes` finished episodes; the first `num_episodes` of each task (in finishing order,
-    ties by env index) count. Returns per-task success rates and mean returns."""
+    ties by env index, or by position in `order`) count. Returns per-task success rates and mean
+    returns."""
+    order = np.arange(len(task_index)) if order is None else order
     n_tasks = int(task_index.max()) + 1
     successes, returns = np.zeros(n_tasks), [[] for _ in range(n_tasks)]
     obs = np.asarray(observe(state.obs))
@@ -220,7 +238,7 @@ def _episodes_in_place(
         agent.reset(done)
         episode_return = np.asarray(state.info["episode_return"])
         solved = np.asarray(state.info["success"])
-        for i in np.flatnonzero(done):
+        for i in order[done[order]]:
             t = task_index[i]
             returns[t].append(float(episode_return[i]))
             if len(returns[t]) <= num_episodes:
@@ -232,6 +250,6 @@ def _episodes_in_place(
 def _core(envs: Any) -> Any:
     """The `MwjaxVectorEnv` under Gymnasium wrappers."""
     core = getattr(envs, "unwrapped", envs)
-    if not hasattr(core, "env") or not isinstance(core.env, Env):
+    if not hasattr(core, "env") or not isinstance(core.env, (Env, ShardedEnv)):
         raise TypeError(f"expected an mwjax Gymnasium vector env, got {type(envs).__name__}")
     return core

@@ -12,6 +12,7 @@ from typing import Any
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 from mwjax.policies import (  # noqa: F401  (each family module registers its experts)
     articulated,
@@ -44,11 +45,15 @@ def expert_policy(env: Any) -> Callable[[Any, Array, Array], Array]:
     driven by its own task's expert; `params` and `key` are ignored (the experts are deterministic).
     Extra observation columns (e.g. a one-hot task id) are ignored."""
     parts = [(env.task_rows(task), jax.vmap(expert(task))) for task in env.task_list]
+    # The concatenated parts' rows in env order (a sharded env spreads each task over its devices).
+    order = np.argsort(np.concatenate([np.arange(env.num_envs)[rows] for rows, _ in parts]))
+    in_order = bool(np.all(order == np.arange(env.num_envs)))
 
     def policy(params: Any, obs: Array, key: Array) -> Array:
         del params, key
         obs = jnp.asarray(obs)[:, :39]
-        return jnp.concatenate([fn(obs[rows]) for rows, fn in parts])
+        actions = jnp.concatenate([fn(obs[rows]) for rows, fn in parts])
+        return actions if in_order else actions[order]
 
     return policy
 

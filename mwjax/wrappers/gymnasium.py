@@ -20,7 +20,8 @@ import numpy as np
 from gymnasium.vector import AutoresetMode
 
 from mwjax import benchmarks, rendering
-from mwjax.env import MAX_EPISODE_STEPS, Env, State
+from mwjax.env import MAX_EPISODE_STEPS, Env, State, make
+from mwjax.sharding import ShardedEnv
 
 Array = jax.Array
 _AUTORESET = {AutoresetMode.SAME_STEP: "same_step", AutoresetMode.NEXT_STEP: "next_step"}
@@ -74,7 +75,7 @@ class MwjaxVectorEnv(gym.vector.VectorEnv):
 
     def __init__(
         self,
-        env: Env,
+        env: Env | ShardedEnv,
         use_one_hot: bool = False,
         num_tasks: int | None = None,
         render_mode: str | None = None,
@@ -103,7 +104,7 @@ class MwjaxVectorEnv(gym.vector.VectorEnv):
         if render_mode is None:
             render_envs = ()
         elif render_envs is None:
-            render_envs = [env.task_rows(task).start for task in env.task_list]
+            render_envs = [np.arange(env.num_envs)[env.task_rows(task)][0] for task in env.task_list]
         elif isinstance(render_envs, str):
             if render_envs != "all":
                 raise ValueError(f"render_envs must be a list of env indices or 'all', got {render_envs!r}")
@@ -434,6 +435,7 @@ def make_vector(
     num_goals: int | None = None,
     num_tasks: int | None = None,
     env_id: int | None = None,
+    devices: Sequence[jax.Device] | None = None,
     **reference_options: Any,
 ) -> gym.vector.VectorEnv:
     """The Gymnasium vector env of a task set split, with the reference's kwargs.
@@ -447,7 +449,8 @@ def make_vector(
     the reference's, and so are its rendering kwargs (plus `render_envs`: which envs `render()`
     shows; `MwjaxVectorEnv`); its normalization and recurrent-info options are accepted at their
     defaults only. `max_episode_steps=None` means the reference's 500. `array_type="torch"` needs
-    PyTorch (the `torch` extra).
+    PyTorch (the `torch` extra). `devices` splits the batch over them (`mwjax.make`'s): rows are
+    then laid out device by device (`env.row_order`; `task_names` and the one-hot ids follow).
     """
     if vector_strategy not in (None, "sync", "async"):
         raise ValueError(f"vector_strategy must be 'sync' or 'async', got {vector_strategy!r}")
@@ -474,9 +477,10 @@ def make_vector(
         # The reference's ML test envs terminate on success, its train and MT envs do not.
         terminate_on_success = bench.meta_learning and split == "test"
     seed = 0 if seed is None else seed
-    env = Env(
+    env = make(
         bench,
         envs_per_task=total // n_tasks,
+        devices=devices,
         seed=seed,
         split=split,
         reward_version=reward_function_version,

@@ -1,0 +1,276 @@
+"""Env steps per second of one task set on 1, 2, 4, ... local GPUs (`mwjax.make(..., devices=)`).
+
+    python benchmarks/multi_gpu.py                      # MT50, 1 2 4 GPUs, 1,024 envs per task per GPU
+    python benchmarks/multi_gpu.py --set MT1:reach-v3 --envs-per-task 2 --steps 5 --cpu  # smoke run
+
+The protocol is `benchmarks/throughput.py`'s: a jitted `lax.scan` rollout of `--steps` (500)
+env steps with uniform random actions drawn on device (every env autoresets once), run once to
+warm up, then timed `--repeats` times; the best is the figure. Default physics. A row whose
+envs overflowed a physics buffer (`info["physics_overflow"]`, Warp dropped contacts or
+constraint rows) is flagged `valid: false` and its figure not quoted as throughput.
+
+Scaling is weak by default: every device count gets `--envs-per-task` envs per task *per
+device*, so each GPU steps the same batch and perfect scaling doubles the rate with the devices.
+`--strong` makes `--envs-per-task` the total instead. One device runs the plain single-device
+env (`devices=None`), the others `mwjax.make(..., devices=the first n GPUs)`.
+
+Each device count runs in its own process (a clean GPU, its own Warp graphs). When the counts fit
+on disjoint GPUs (1 + 2 + 4 = 7 of 8) the processes start together, so their compiles overlap,
+and take turns (a file lock) for the warm-up and timed rollouts; otherwise they run one after
+another on GPUs 0..n-1. Results: a table, and a JSON file (device names, count, batch, commit,
+date, command) in `benchmarks/results/`, whose last stdout line is the summary row.
+Set XLA_PYTHON_CLIENT_MEM_FRACTION (~0.45, the default here) so that JAX leaves Warp room.
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime
+import fcntl
+import json
+import os
+import platform
+import shlex
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+RESULTS = Path(__file__).parent / "results"
+
+
+def commit() -> str:
+    if os.environ.get("MWJAX_COMMIT"):
+        return os.environ["MWJAX_COMMIT"]
+    try:
+        return subprocess.run(
+            ["git", "rev-parse", "HEAD"],
+            capture_output=True,
+            text=True,
+            check=True,
+            cwd=Path(__file__).parent,
+        ).stdout.strip()
+    except (OSError, subprocess.CalledProcessError):
+        return "unknown"
+
+
+def gpu_count() -> int:
+    """Visible NVIDIA GPUs, without starting JAX in this (parent) process."""
+    visible = os.environ.get("CUDA_VISIBLE_DEVICES")
+    if visible is not None:
+        return len([v for v in visible.split(",") if v.strip()])
+    try:
+        out = subprocess.run(["nvidia-smi", "-L"], capture_output=True, text=True, check=True).stdout
+    except (OSError, subprocess.CalledProcessError):
+        return 0
+    return sum(1 for line in out.splitlines() if line.startswith("GPU "))
+
+
+# ------------------------------------------------------------------------------------------------
+# One device count (a child process)
+
+
+def measure(args: argparse.Namespace) -> dict:
+    import jax
+    import jax.numpy as jnp
+
+    import mwjax
+    from mwjax.physics import DROPPED
+
+    n = args.child
+    devices = jax.local_devices()[:n]
+    if len(devices) < n:
+        raise SystemExit(f"{n} devices asked for, {len(jax.local_devices())} visible")
+    per_task = args.envs_per_task if args.strong else args.envs_per_task * n
+    physics = mwjax.PhysicsConfig(graph_mode=args.graph_mode)
+    t0 = time.perf_counter()
+    env = mwjax.make(
+        args.set, envs_per_task=per_task, seed=0, physics=physics, devices=devices if n > 1 else None
+    )
+    build_s = time.perf_counter() - t0
+
+    def rollout(state: mwjax.State, key: jax.Array) -> tuple:
+        def body(carry: tuple, key: jax.Array) -> tuple:
+            state, successes, overflowed = carry
+            action = jax.random.uniform(key, (env.num_envs, 4), minval=-1.0, maxval=1.0)
+            state = env.step(state, action)
+            dropped = (state.info["physics_overflow"] & int(DROPPED)) != 0
+            return (state, successes + state.info["success"].sum(), overflowed | dropped), None
+
+        init = (state, jnp.zeros((), jnp.int32), jnp.zeros(env.num_envs, bool))
+        (state, successes, overflowed), _ = jax.lax.scan(body, init, jax.random.split(key, args.steps))
+        return state, successes, overflowed.sum()
+
+    t0 = time.perf_counter()
+    state = jax.block_until_ready(jax.jit(env.reset)(jax.random.key(0)))
+    reset_compile_s = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    compiled = jax.jit(rollout, donate_argnums=0).lower(state, jax.random.key(1)).compile()
+    compile_s = time.perf_counter() - t0
+    print(f"[{n} device(s)] {env.num_envs} envs: compiled in {compile_s:.0f}s", file=sys.stderr, flush=True)
+
+    with open(args.lock) as lock:  # the rollouts of different counts never overlap
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        t0 = time.perf_counter()
+        state, _, overflow = jax.block_until_ready(compiled(state, jax.random.key(1)))
+        warmup_s = time.perf_counter() - t0
+        overflow_envs = int(overflow)
+        times = []
+        for i in range(args.repeats):
+            t0 = time.perf_counter()
+            state, successes, overflow = jax.block_until_ready(compiled(state, jax.random.key(2 + i)))
+            times.append(time.perf_counter() - t0)
+            overflow_envs = max(overflow_envs, int(overflow))
+    rate = env.num_envs * args.steps / min(times)
+    return {
+        "benchmark": args.set,
+        "devices": n,
+        "device_names": [getattr(d, "device_kind", str(d)) for d in devices],
+        "platform": devices[0].platform,
+        "num_envs": env.num_envs,
+        "envs_per_device": env.num_envs // n,
+        "steps_per_rollout": args.steps,
+        "env_steps_per_s": rate,
+        "env_steps_per_s_per_device": rate / n,
+        "rollout_s": times,
+        "warmup_rollout_s": warmup_s,
+        "build_s": build_s,
+        "reset_compile_s": reset_compile_s,
+        "step_compile_s": compile_s,
+        "success_steps_last_rollout": int(successes),
+        # Comparable across counts (random actions): a sanity check that every count simulates alike.
+        "success_steps_per_env": int(successes) / env.num_envs,
+        "overflow_envs": overflow_envs,
+        "valid": overflow_envs == 0,
+        "jax": jax.__version__,
+    }
+
+
+# ------------------------------------------------------------------------------------------------
+# The parent: one child per device count
+
+
+def child_env(args: argparse.Namespace, gpus: list[int], n: int) -> dict:
+    env = dict(os.environ)
+    env.setdefault("XLA_PYTHON_CLIENT_MEM_FRACTION", "0.45")
+    if args.cpu:
+        env["JAX_PLATFORMS"] = "cpu"
+        env["XLA_FLAGS"] = f"{env.get('XLA_FLAGS', '')} --xla_force_host_platform_device_count={n}".strip()
+    else:
+        env["CUDA_VISIBLE_DEVICES"] = ",".join(str(g) for g in gpus)
+    return env
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--set", default="MT50", help="a set name (MT50, MT1:<task>, ...)")
+    parser.add_argument("--devices", type=int, nargs="+", default=[1, 2, 4], help="device counts")
+    parser.add_argument(
+        "--envs-per-task", type=int, default=1024, help="per task and device (with --strong: in total)"
+    )
+    parser.add_argument("--strong", action="store_true", help="the same total batch on every count")
+    parser.add_argument("--steps", type=int, default=500)
+    parser.add_argument("--repeats", type=int, default=1)
+    parser.add_argument("--graph-mode", default=None, help="PhysicsConfig.graph_mode (warp, jax, none)")
+    parser.add_argument("--cpu", action="store_true", help="host devices instead of GPUs (a smoke run)")
+    parser.add_argument(
+        "--sequential", action="store_true", help="one count after another even if they fit side by side"
+    )
+    parser.add_argument("--out", default=None, help="JSON path (default: benchmarks/results/...)")
+    parser.add_argument("--child", type=int, default=None, help=argparse.SUPPRESS)
+    parser.add_argument("--lock", default=None, help=argparse.SUPPRESS)
+    args = parser.parse_args()
+    if args.child is not None:
+        print(json.dumps(measure(args)), flush=True)
+        return
+
+    counts = sorted(set(args.devices))
+    available = max(counts) if args.cpu else gpu_count()
+    if not args.cpu and available == 0:
+        sys.exit("no NVIDIA GPU visible (--cpu runs on host devices)")
+    skipped = [n for n in counts if n > available]
+    counts = [n for n in counts if n <= available]
+    if skipped:
+        print(f"skipping device counts {skipped}: {available} GPU(s) visible", flush=True)
+    if args.strong and any(args.envs_per_task % n for n in counts):
+        sys.exit(f"--strong: --envs-per-task {args.envs_per_task} must split evenly over {counts} devices")
+    side_by_side = not args.cpu and not args.sequential and sum(counts) <= available
+    gpu_sets, first = [], 0
+    for n in counts:
+        gpu_sets.append(list(range(first, first + n)) if side_by_side else list(range(n)))
+        first += n
+
+    script = Path(__file__).resolve()
+    forwarded = ["--set", args.set, "--envs-per-task", str(args.envs_per_task), "--steps", str(args.steps)]
+    forwarded += ["--repeats", str(args.repeats)] + (["--strong"] if args.strong else [])
+    forwarded += ["--graph-mode", args.graph_mode] if args.graph_mode else []
+    start = time.perf_counter()
+    rows = []
+    with tempfile.NamedTemporaryFile(prefix="mwjax-multi-gpu-", suffix=".lock") as lock:
+        commands = [
+            [sys.executable, str(script), *forwarded, "--child", str(n), "--lock", lock.name] for n in counts
+        ]
+        if side_by_side:
+            procs = [
+                subprocess.Popen(cmd, env=child_env(args, gpus, n), stdout=subprocess.PIPE, text=True)
+                for cmd, gpus, n in zip(commands, gpu_sets, counts, strict=True)
+            ]
+            outputs = [(p.communicate()[0], p.returncode) for p in procs]
+        else:
+            outputs = []
+            for cmd, gpus, n in zip(commands, gpu_sets, counts, strict=True):
+                done = subprocess.run(cmd, env=child_env(args, gpus, n), stdout=subprocess.PIPE, text=True)
+                outputs.append((done.stdout, done.returncode))
+    for n, (stdout, code) in zip(counts, outputs, strict=True):
+        if code:
+            print(f"{n} device(s): the run failed (exit {code})", flush=True)
+            continue
+        rows.append(json.loads(stdout.strip().splitlines()[-1]))
+
+    base = next((r for r in rows if r["devices"] == 1), None)
+    for row in rows:
+        row["scaling"] = row["env_steps_per_s"] / base["env_steps_per_s"] if base else None
+        row["efficiency"] = row["scaling"] / row["devices"] if base else None
+    names = sorted({name for r in rows for name in r["device_names"]})
+    device = names[0] if len(names) == 1 else ", ".join(names) or "none"
+    now = datetime.datetime.now(datetime.timezone.utc)
+    summary = {
+        "benchmark": args.set,
+        "device": device,
+        "device_counts": [r["devices"] for r in rows],
+        "num_envs": [r["num_envs"] for r in rows],
+        "env_steps_per_s": [r["env_steps_per_s"] for r in rows],
+        "scaling": [r["scaling"] for r in rows],
+        "valid": all(r["valid"] for r in rows) and len(rows) == len(counts),
+        "weak_scaling": not args.strong,
+        "side_by_side_compiles": side_by_side,
+        "commit": commit(),
+        "date": now.isoformat(timespec="seconds"),
+        "host": platform.node(),
+        "command": shlex.join([sys.executable, *sys.argv]),
+        "xla_mem_fraction": os.environ.get("XLA_PYTHON_CLIENT_MEM_FRACTION", "0.45"),
+        "graph_mode": args.graph_mode,
+        "wall_s": time.perf_counter() - start,
+        "results": rows,
+    }
+    stem = f"multi-gpu-{args.set.replace(':', '-')}-{summary['commit'][:7]}-{device}-{now.date()}"
+    out = Path(args.out) if args.out else RESULTS / f"{stem.replace(' ', '_')}.json"
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(json.dumps(summary, indent=2))
+
+    header = ("devices", "envs", "env steps/s", "per device", "scaling", "compile s")
+    print("\n" + " ".join(f"{h:>{w}}" for h, w in zip(header, (8, 9, 14, 12, 8, 10), strict=True)))
+    for r in rows:
+        scaling = f"{r['scaling']:.2f}x" if r["scaling"] else "n/a"
+        flag = "" if r["valid"] else f"  OVERFLOW in {r['overflow_envs']} envs: not a throughput figure"
+        print(
+            f"{r['devices']:>8} {r['num_envs']:>9} {r['env_steps_per_s']:>14,.0f} "
+            f"{r['env_steps_per_s_per_device']:>12,.0f} {scaling:>8} {r['step_compile_s']:>10.0f}{flag}"
+        )
+    print(f"{device}, commit {summary['commit'][:10]}, {summary['date']} -> {out}")
+    print(json.dumps({k: v for k, v in summary.items() if k != "results"}), flush=True)
+
+
+if __name__ == "__main__":
+    main()

@@ -79,6 +79,7 @@ class FakeEnv:
 def made(monkeypatch):
     FakeEnv.made = []
     monkeypatch.setattr(adapters, "Env", FakeEnv)
+    monkeypatch.setattr(adapters, "make", lambda *args, devices=None, **kwargs: FakeEnv(*args, **kwargs))
     return FakeEnv.made
 
 

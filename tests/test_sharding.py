@@ -205,8 +205,7 @@ def test_gymnasium_adapter_and_evaluation_take_devices():
 def test_data_parallel_ppo_keeps_one_policy_over_the_devices():
     """`train_mt_ppo.py --devices 2`: each device rolls out its envs, the gradients and the
     statistics are averaged over both, and the replicated parameters stay equal on each."""
-    sys.path.insert(0, str(Path(__file__).parents[1] / "benchmarks"))
-    import train_mt_ppo as ppo
+    from examples import train_mt_ppo as ppo
 
     stats = ppo.RunningStats.zeros((3,))
     batch = jax.random.normal(jax.random.key(0), (4, 6, 3)) * jnp.arange(1.0, 4.0) + 2.0

@@ -286,7 +286,9 @@ class Physics:
         jax.lax.cond(dropped, lambda f: jax.debug.callback(self._warn, f), lambda f: None, flags)
 
     def _warn(self, flags: np.ndarray) -> None:
-        for group, bits in zip(self.groups, np.asarray(flags), strict=True):
+        # Under an outer vmap (e.g. over seeds) the flags arrive with leading batch axes.
+        flags = np.bitwise_or.reduce(np.asarray(flags).reshape(-1, len(self.groups)), axis=0)
+        for group, bits in zip(self.groups, flags, strict=True):
             for flag, (what, setting) in _BUFFERS.items():
                 if not bits & flag or (group.scene, flag) in self._warned:
                     continue

@@ -93,6 +93,7 @@ def main() -> None:
 
     # Counted on the host in float64, so that e.g. 48/50 compares exactly against 1.00 - 0.04.
     success = np.asarray(result.success)
+    dropped = np.asarray(first.dropped) | np.asarray(result.dropped)
     per_task = success.astype(np.float64).mean(axis=1)
     rates = {t: float(r) for t, r in zip(env.task_list, per_task, strict=True)}
     # The same program twice: on a GPU the runs may differ (contact order), so both are kept.
@@ -109,6 +110,7 @@ def main() -> None:
                 "failed_goals": np.flatnonzero(~success[i]).tolist(),
                 "first_run": float(first_success[i].astype(np.float64).mean()),
                 "first_run_failed_goals": np.flatnonzero(~first_success[i]).tolist(),
+                "overflow_episodes": int(dropped[i].sum()),
             }
         )
     device = jax.devices()[0]
@@ -126,6 +128,8 @@ def main() -> None:
         "mean_success_rate": float(np.mean(list(rates.values()))),
         "reference_mean_success_rate": float(np.mean([r["reference"] for r in rows])),
         "all_within_tolerance": all(r["ok"] for r in rows),
+        # Episodes in which Warp dropped a contact, row or collider pair (either run).
+        "overflow_episodes": int(dropped.sum()),
         "compile_s": compile_s,
         "first_run_s": first_s,
         "run_s": run_s,
@@ -157,7 +161,8 @@ def main() -> None:
         f"Reference: serial, {reference['wall_seconds']:.0f} s on {reference['machine']}.",
         "",
         f"Mean success: mwjax {out['mean_success_rate']:.3f}, "
-        f"reference {out['reference_mean_success_rate']:.3f} (same tasks).",
+        f"reference {out['reference_mean_success_rate']:.3f} (same tasks). Episodes in which Warp "
+        f"dropped a contact, constraint row or collider pair: {out['overflow_episodes']}.",
         "",
         "| task | mwjax | reference | within 0.04 | failed goals | first run (same program) |",
         "| --- | --- | --- | --- | --- | --- |",

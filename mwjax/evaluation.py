@@ -20,6 +20,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from mwjax.env import Env, State
+from mwjax.physics import DROPPED
 from mwjax.sharding import ShardedEnv
 
 Array = jax.Array
@@ -31,6 +32,9 @@ class EvalResult(NamedTuple):
     success: Array  # (tasks, episodes) bool
     returns: Array  # (tasks, episodes) undiscounted, up to and including the success step
     lengths: Array  # (tasks, episodes) steps until success or the horizon
+    # (tasks, episodes) bool: Warp dropped a contact, constraint row or collider pair during the
+    # episode (`info["physics_overflow"]`), so it left the reference's physics.
+    dropped: Array
 
 
 class Agent(Protocol):
@@ -98,22 +102,22 @@ def evaluator(
         state = eval_env.reset_with_variants(variants, reset_key)
         zeros = jnp.zeros(eval_env.num_envs)
 
-        def step(
-            carry: tuple[State, Array, Array, Array, Array], k: Array
-        ) -> tuple[tuple[State, Array, Array, Array, Array], None]:
-            state, running, returns, lengths, success = carry
+        def step(carry: tuple, k: Array) -> tuple[tuple, None]:
+            state, running, returns, lengths, success, dropped = carry
             state = eval_env.step(state, policy(params, observe(state.obs), k))
             returns = returns + jnp.where(running, state.reward, 0.0)
             lengths = lengths + running
             success = success | (running & state.info["success"])
+            dropped = dropped | (running & ((state.info["physics_overflow"] & int(DROPPED)) != 0))
             running = running & ~(state.info["success"] | state.truncated)
-            return (state, running, returns, lengths, success), None
+            return (state, running, returns, lengths, success, dropped), None
 
-        init = (state, jnp.ones(eval_env.num_envs, bool), zeros, zeros.astype(jnp.int32), zeros.astype(bool))
+        false = zeros.astype(bool)
+        init = (state, jnp.ones(eval_env.num_envs, bool), zeros, zeros.astype(jnp.int32), false, false)
         keys = jax.random.split(act_key, eval_env.max_episode_steps)
-        (_, _, returns, lengths, success), _ = jax.lax.scan(step, init, keys)
-        success, returns, lengths = (by_task(eval_env, x, num_episodes) for x in (success, returns, lengths))
-        return EvalResult(success.mean(axis=1), success, returns, lengths)
+        (_, _, *per_env), _ = jax.lax.scan(step, init, keys)
+        returns, lengths, success, dropped = (by_task(eval_env, x, num_episodes) for x in per_env)
+        return EvalResult(success.mean(axis=1), success, returns, lengths, dropped)
 
     return run
 

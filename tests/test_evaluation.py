@@ -31,6 +31,7 @@ def test_experts_solve_their_tasks_in_the_functional_evaluator():
     lengths = np.asarray(result.lengths)
     assert np.all((lengths > 1) & (lengths < HORIZON))  # episodes end at success
     assert np.all(np.asarray(result.returns) > 0)
+    assert result.dropped.shape == (3, 2) and not np.asarray(result.dropped).any()  # default buffers
 
 
 class ExpertAgent:

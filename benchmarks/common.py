@@ -11,32 +11,33 @@ import subprocess
 import sys
 from pathlib import Path
 
-import jax
-
-from mwjax.tasks import TASKS
-
 RESULTS = Path(__file__).parent / "results"
 
 
 def commit() -> str:
-    """The commit measured: `MWJAX_COMMIT` where the checkout has no `.git` (a copied tree)."""
+    """The commit measured: `MWJAX_COMMIT` where the checkout has no `.git` (a copied tree).
+    Imports nothing heavy, so a parent process that must not start JAX can call it."""
     if os.environ.get("MWJAX_COMMIT"):
         return os.environ["MWJAX_COMMIT"]
     try:
         return subprocess.run(
-            ["git", "rev-parse", "HEAD"], capture_output=True, text=True, check=True
+            ["git", "rev-parse", "HEAD"], capture_output=True, text=True, check=True, cwd=RESULTS.parent
         ).stdout.strip()
     except (OSError, subprocess.CalledProcessError):
         return "unknown"
 
 
 def device_name() -> str:
+    import jax
+
     device = jax.devices()[0]
     return getattr(device, "device_kind", str(device))
 
 
 def provenance() -> dict:
     """Where, when and how a result was measured: every result file starts with this."""
+    import jax
+
     device = jax.devices()[0]
     return {
         "device": device_name(),
@@ -62,6 +63,8 @@ def result_path(kind: str, name: str, suffix: str) -> Path:
 def tasks_arg(text: str) -> str | list[str]:
     """A set as `mwjax.make` takes it: a set name, or task names separated by commas (one task
     alone runs as a one-task set)."""
+    from mwjax.tasks import TASKS
+
     return text.split(",") if "," in text or text in TASKS else text
 
 

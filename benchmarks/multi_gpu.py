@@ -37,22 +37,7 @@ import tempfile
 import time
 from pathlib import Path
 
-RESULTS = Path(__file__).parent / "results"
-
-
-def commit() -> str:
-    if os.environ.get("MWJAX_COMMIT"):
-        return os.environ["MWJAX_COMMIT"]
-    try:
-        return subprocess.run(
-            ["git", "rev-parse", "HEAD"],
-            capture_output=True,
-            text=True,
-            check=True,
-            cwd=Path(__file__).parent,
-        ).stdout.strip()
-    except (OSError, subprocess.CalledProcessError):
-        return "unknown"
+from common import RESULTS, commit
 
 
 def gpu_count() -> int:
@@ -255,7 +240,7 @@ def main() -> None:
         "results": rows,
     }
     stem = f"multi-gpu-{args.set.replace(':', '-')}-{summary['commit'][:7]}-{device}-{now.date()}"
-    out = Path(args.out) if args.out else RESULTS / f"{stem.replace(' ', '_')}.json"
+    out = Path(args.out) if args.out else RESULTS / "throughput" / f"{stem.replace(' ', '_')}.json"
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(json.dumps(summary, indent=2))
 

@@ -6,7 +6,7 @@ For each set and resolution it times, at the same batch size and after a warm-up
   - `physics_steps_per_s`: the same rollout without pixels;
   - `render_frames_per_s`: rendering alone (the batch's images of one state, repeated);
 so the row says where the time goes. One JSON row per measurement is printed (and appended to
-`--out`, default `benchmarks/results/render-throughput-<device>-<date>.jsonl`).
+`--out`, default `benchmarks/results/render/render-throughput-<device>-<date>.jsonl`).
 
     python benchmarks/render_throughput.py                      # MT1 pick-place and MT10, 64 and 128 px
     python benchmarks/render_throughput.py --sets MT10 --batch 16384 --sizes 64
@@ -24,35 +24,17 @@ os.environ.setdefault("XLA_PYTHON_CLIENT_MEM_FRACTION", "0.45")
 import argparse  # noqa: E402
 import datetime  # noqa: E402
 import json  # noqa: E402
-import subprocess  # noqa: E402
 import sys  # noqa: E402
 import time  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 import jax  # noqa: E402
 import jax.numpy as jnp  # noqa: E402
+from common import RESULTS, commit  # noqa: E402
 
 import mwjax  # noqa: E402
 from mwjax import rendering  # noqa: E402
 from mwjax.benchmarks import task_names  # noqa: E402
-
-RESULTS = Path(__file__).parent / "results"
-
-
-def commit() -> str:
-    if os.environ.get("MWJAX_COMMIT"):
-        return os.environ["MWJAX_COMMIT"]
-    try:
-        out = subprocess.run(
-            ["git", "rev-parse", "HEAD"],
-            capture_output=True,
-            text=True,
-            check=True,
-            cwd=Path(__file__).parent,
-        )
-        return out.stdout.strip()
-    except (OSError, subprocess.CalledProcessError):
-        return "unknown"
 
 
 def log(*args) -> None:
@@ -237,7 +219,7 @@ def main(argv=None) -> int:
         out = (
             Path(args.out)
             if args.out
-            else RESULTS / f"render-throughput-{device.replace(' ', '_')}-{today}.jsonl"
+            else RESULTS / "render" / f"render-throughput-{device.replace(' ', '_')}-{today}.jsonl"
         )
         out.parent.mkdir(parents=True, exist_ok=True)
         for name in args.sets:

@@ -29,7 +29,7 @@ INDEX = RESULTS / "README.md"
 # results by these prefixes (first match wins).
 KINDS: dict[str, tuple[tuple[str, ...], str]] = {
     "throughput": (
-        ("throughput-", "ccd-slots-", "per-scene-rows-"),
+        ("throughput-", "ccd-slots-", "per-scene-rows-", "multi-gpu-"),
         "env steps per second (`benchmarks/throughput.py`), plots, buffer and adapter timings",
     ),
     "compile": (

@@ -14,16 +14,13 @@ writes a JSON and a Markdown table to `benchmarks/results/experts/`.
 from __future__ import annotations
 
 import argparse
-import datetime
 import json
-import shlex
-import sys
 import time
 from pathlib import Path
 
 import jax
 import numpy as np
-from common import commit, rows_arg, tasks_arg
+from common import provenance, rows_arg, tasks_arg
 
 import mwjax
 from mwjax import policies
@@ -113,12 +110,8 @@ def main() -> None:
                 "overflow_episodes": int(dropped[i].sum()),
             }
         )
-    device = jax.devices()[0]
     out = {
-        "device": getattr(device, "device_kind", str(device)),
-        "commit": commit(),
-        "date": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
-        "command": shlex.join(["python", *sys.argv]),
+        **provenance(),
         "set": args.set,
         "physics": str(physics),
         "seed": args.seed,

@@ -14,6 +14,10 @@ env raised (`info["physics_overflow"]`) and the most constraint rows any env nee
 
     python benchmarks/stress_buffers.py --set MT50 --envs-per-task 1024 --record
 
+`--part K/N` runs the K-th of N slices of the set's tasks (a set too large to build and run in one
+go runs as several processes; `--record` merges them). The tables are written after each policy,
+so a run cut short keeps what it finished.
+
 Writes a JSON and a Markdown table to `benchmarks/results/overflow/`; exits non-zero when any env
 dropped something. `--record` also writes each scene's peak rows to
 `mwjax/models/stress_rows.json`, from which `mwjax.models.constraint_rows` sizes the default
@@ -35,6 +39,7 @@ from mujoco.mjx.third_party.mujoco_warp import OverflowType
 
 import mwjax
 from mwjax import policies
+from mwjax.benchmarks import task_names
 from mwjax.models import MODELS_DIR
 from mwjax.physics import DROPPED
 
@@ -83,21 +88,30 @@ def stress_actions(env: mwjax.Env) -> Callable:
     return act
 
 
-def record(table: dict, scenes: dict, args: argparse.Namespace, result: dict) -> None:
-    """Merge this run's per-scene, per-policy peaks into `stress_rows.json` (the most seen by any
-    run: runs at other batch sizes or on other devices add to the corpus, never shrink it)."""
+def part_of(tasks: str | list[str], part: str) -> list[str]:
+    """The K-th of N contiguous slices (`part` "K/N") of a set's tasks."""
+    k, n = (int(x) for x in part.split("/"))
+    if not 1 <= k <= n:
+        raise SystemExit(f"--part {part}: K/N with 1 <= K <= N")
+    names = list(task_names(tasks) if isinstance(tasks, str) else tasks)
+    size = -(-len(names) // n)
+    return names[(k - 1) * size : k * size]
+
+
+def record(table: dict, scenes: dict, args: argparse.Namespace, result: dict, policy: str) -> None:
+    """Merge one policy's per-scene peaks into `stress_rows.json` (the most seen by any run: runs
+    at other batch sizes or on other devices add to the corpus, never shrink it)."""
     path = MODELS_DIR / "stress_rows.json"
     recorded = json.loads(path.read_text()) if path.exists() else {"scenes": {}, "sources": []}
     for name, scene in scenes.items():
         entry = recorded["scenes"].setdefault(name, {"peak_rows": 0, "by_policy": {}, "tasks": []})
-        for policy in args.policies:
-            peak = max(table[task][policy]["peak_rows"] for task in scene["tasks"])
-            entry["by_policy"][policy] = max(entry["by_policy"].get(policy, 0), peak)
+        peak = max(table[task][policy]["peak_rows"] for task in scene["tasks"])
+        entry["by_policy"][policy] = max(entry["by_policy"].get(policy, 0), peak)
         entry["peak_rows"] = max(entry["by_policy"].values())
         entry["tasks"] = sorted(set(entry["tasks"]) | set(scene["tasks"]))
     recorded["sources"].append(
-        f"{result['command']}: {args.envs_per_task} envs per task, {args.steps} steps, policies "
-        f"{', '.join(args.policies)}, {result['device']}, commit {result['commit'][:7]}, "
+        f"{result['command']}: {args.envs_per_task} envs per task, {args.steps} steps, policy "
+        f"{policy}, {result['device']}, commit {result['commit'][:7]}, "
         f"{result['date'][:10]}"
     )
     path.write_text(json.dumps(recorded, indent=1, sort_keys=True) + "\n")
@@ -111,11 +125,13 @@ def main() -> None:
     parser.add_argument("--steps", type=int, default=500, help="steps per run (500: whole episodes)")
     parser.add_argument("--policies", nargs="+", choices=POLICIES, default=list(POLICIES))
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--part", default="1/1", help="K/N: the K-th of N slices of the set's tasks")
     parser.add_argument("--record", action="store_true", help="write mwjax/models/stress_rows.json")
     args = parser.parse_args()
 
     t0 = time.perf_counter()
-    env = mwjax.make(tasks_arg(args.set), envs_per_task=args.envs_per_task, seed=args.seed)
+    tasks = part_of(tasks_arg(args.set), args.part)
+    env = mwjax.make(tasks, envs_per_task=args.envs_per_task, seed=args.seed)
     act = stress_actions(env)
 
     def run(policy: jax.Array, key: jax.Array) -> tuple[jax.Array, jax.Array]:
@@ -157,12 +173,20 @@ def main() -> None:
             f"  {name:<13} {time.perf_counter() - t0:6.1f} s, envs that dropped something: {dropped}",
             flush=True,
         )
+        dropped_tasks = report(env, table, args, args.policies[: i + 1])
 
+    if dropped_tasks:
+        raise SystemExit(f"envs dropped contacts, rows or collider pairs in: {', '.join(dropped_tasks)}")
+
+
+def report(env: mwjax.Env, table: dict, args: argparse.Namespace, run: list[str]) -> list[str]:
+    """Write the JSON and Markdown tables for the policies `run` so far (`--record`: merge the
+    last one's peaks); returns the tasks in which any env dropped something."""
     scenes: dict[str, dict] = {}
     for group in env.physics.groups:
         tasks = [t for t in env.task_list if env.task_rows(t).start < group.start + group.size]
         tasks = [t for t in tasks if env.task_rows(t).start >= group.start]
-        peak = max(table[t][p]["peak_rows"] for t in tasks for p in args.policies)
+        peak = max(table[t][p]["peak_rows"] for t in tasks for p in run)
         scene = scenes.setdefault(group.scene, {"peak_rows": 0, "allocated_rows": 0, "tasks": []})
         scene["peak_rows"] = max(scene["peak_rows"], peak)
         scene["allocated_rows"] = env.physics.constraint_rows(group.scene)
@@ -171,44 +195,43 @@ def main() -> None:
     result = {
         **provenance(),
         "set": args.set,
+        "part": args.part,
         "envs_per_task": args.envs_per_task,
         "steps": args.steps,
-        "policies": args.policies,
+        "policies": run,
         "seed": args.seed,
         "tasks": table,
         "scenes": scenes,
     }
-    out = result_path("overflow", f"stress-{args.set.replace(',', '+')}", ".json")
+    part = "" if args.part == "1/1" else "-part" + args.part.replace("/", "of")
+    out = result_path("overflow", f"stress-{args.set.replace(',', '+')}{part}", ".json")
     out.write_text(json.dumps(result, indent=1))
     lines = [
-        f"# Warp buffers under stress policies, {args.set}, {args.envs_per_task} envs per task",
+        f"# Warp buffers under stress policies, {args.set} (part {args.part}), "
+        f"{args.envs_per_task} envs per task",
         "",
         f"`{result['command']}`, commit {result['commit'][:7]}, {result['device']}, {result['date']}. "
         f"Default physics; {args.steps}-step episodes from reset; per task and policy: the envs that "
         "dropped a contact, constraint row or collider pair, all flags raised, and the most "
         "constraint rows one env needed at once (allocated: the scene's `constraint_rows`).",
         "",
-        "| task | "
-        + " | ".join(f"{p}: dropped / flags / peak rows" for p in args.policies)
-        + " | allocated |",
-        "| --- | " + " | ".join("---" for _ in args.policies) + " | ---: |",
+        "| task | " + " | ".join(f"{p}: dropped / flags / peak rows" for p in run) + " | allocated |",
+        "| --- | " + " | ".join("---" for _ in run) + " | ---: |",
     ]
     for task in env.task_list:
         cells = [
-            f"{c['dropped_envs']} / {c['flags']} / {c['peak_rows']}"
-            for c in (table[task][p] for p in args.policies)
+            f"{c['dropped_envs']} / {c['flags']} / {c['peak_rows']}" for c in (table[task][p] for p in run)
         ]
         scene = next(s for s in scenes.values() if task in s["tasks"])
         lines.append(f"| {task} | " + " | ".join(cells) + f" | {scene['allocated_rows']} |")
-    dropped = [t for t in env.task_list if any(table[t][p]["dropped_envs"] for p in args.policies)]
+    dropped = [t for t in env.task_list if any(table[t][p]["dropped_envs"] for p in run)]
     lines += ["", f"Tasks where any env dropped something: {', '.join(dropped) or 'none'}."]
     out.with_suffix(".md").write_text("\n".join(lines) + "\n")
     print("\n".join(lines))
     print(f"-> {out} (.md)")
     if args.record:
-        record(table, scenes, args, result)
-    if dropped:
-        raise SystemExit(f"envs dropped contacts, rows or collider pairs in: {', '.join(dropped)}")
+        record(table, scenes, args, result, run[-1])
+    return dropped
 
 
 if __name__ == "__main__":

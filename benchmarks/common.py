@@ -51,10 +51,11 @@ def provenance() -> dict:
     }
 
 
-def result_path(kind: str, name: str, suffix: str) -> Path:
-    """`benchmarks/results/<kind>/<name>-<commit>-<device>-<date><suffix>`."""
+def result_path(kind: str, name: str, suffix: str, device: str | None = None) -> Path:
+    """`benchmarks/results/<kind>/<name>-<commit>-<device>-<date><suffix>` (`device`: the
+    measuring device's name, where a parent process must not start JAX to ask)."""
     date = datetime.date.today().isoformat()
-    stem = f"{name}-{commit()[:7]}-{device_name().replace(' ', '_')}-{date}"
+    stem = f"{name}-{commit()[:7]}-{(device or device_name()).replace(' ', '_')}-{date}"
     path = RESULTS / kind / f"{stem}{suffix}"
     path.parent.mkdir(parents=True, exist_ok=True)
     return path

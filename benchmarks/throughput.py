@@ -26,13 +26,16 @@ On a GPU set XLA_PYTHON_CLIENT_MEM_FRACTION (~0.45) so JAX leaves Warp room.
 from __future__ import annotations
 
 import argparse
+import concurrent.futures
 import dataclasses
 import json
+import multiprocessing
 import os
 import shlex
 import subprocess
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 import jax
@@ -172,6 +175,20 @@ def measure(
     }
 
 
+def in_fresh_process(function: Callable[..., dict], *args: object) -> dict:
+    """`function(*args)` in a fresh interpreter, with the device's whole memory: Warp keeps each
+    captured CUDA graph, and the scratch it allocated, for the life of the process, so a row
+    measured after another would have less of the card than a user's program of that one set.
+    The row carries the child's provenance (the parent never starts JAX on the device)."""
+    spawn = multiprocessing.get_context("spawn")
+    with concurrent.futures.ProcessPoolExecutor(max_workers=1, mp_context=spawn) as pool:
+        return pool.submit(_with_provenance, function, *args).result()
+
+
+def _with_provenance(function: Callable[..., dict], *args: object) -> dict:
+    return {**function(*args), "provenance": provenance()}
+
+
 def measure_adapter(benchmark: str, total: int, steps: int) -> dict:
     """The Gymnasium adapter stepped from Python: NumPy actions in, NumPy results out, against the
     same adapter with device (jax) arrays, which isolates the host transfer."""
@@ -286,13 +303,13 @@ def main() -> None:
         "graph_mode": args.graph_mode,
     }
     physics = mwjax.PhysicsConfig(**{k: v for k, v in settings.items() if v is not None})
-    out = Path(args.out) if args.out else result_path("throughput", "throughput", ".json")
 
     rows, adapter, reference = [], [], []
     for benchmark in args.sets:
         n_tasks = len(task_names(tasks_arg(benchmark)))
         for total in args.batch:
-            row = measure(
+            row = in_fresh_process(
+                measure,
                 benchmark,
                 total - total % n_tasks,
                 args.steps,
@@ -311,7 +328,9 @@ def main() -> None:
                 flush=True,
             )
             if args.adapter:
-                timing = measure_adapter(benchmark, total - total % n_tasks, args.adapter_steps)
+                timing = in_fresh_process(
+                    measure_adapter, benchmark, total - total % n_tasks, args.adapter_steps
+                )
                 adapter.append(timing)
                 print(
                     f"{'':>20} {'':>7}       adapter: {timing['adapter_numpy_env_steps_per_s']:>12,.0f} "
@@ -333,13 +352,18 @@ def main() -> None:
                 f"{ref['cpu_cores']} cores): {ref['env_steps_per_s']:,.0f} env steps/s; {ratio}",
                 flush=True,
             )
+    first = rows[0].pop("provenance")
+    for row in rows[1:] + adapter:
+        row.pop("provenance")
     result = {
-        **provenance(),
+        **first,
+        "command": shlex.join(["python", *sys.argv]),
         "physics": dataclasses.asdict(physics),
         "results": rows,
         "adapter": adapter,
         "reference": reference,
     }
+    out = Path(args.out) if args.out else result_path("throughput", "throughput", ".json", first["device"])
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(json.dumps(result, indent=2))
     print(f"device {result['device']}, commit {result['commit'][:10]}, {result['date']} -> {out}")

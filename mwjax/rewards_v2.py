@@ -9,6 +9,7 @@ carries the reference's info terms and `success`.
 from __future__ import annotations
 
 import jax.numpy as jnp
+import numpy as np
 
 from mwjax.tasks.spec import StepInputs
 
@@ -1715,7 +1716,7 @@ def door_close(step: StepInputs) -> tuple[Array, dict[str, Array]]:
 
 
 _LOCK_LENGTH = 0.1  # the lock tasks' `_lock_length`: the in-place margin
-_LOCK_SCALE = jnp.array([0.25, 1.0, 0.5])  # x counts least, z half, in the reach distances
+_LOCK_SCALE = np.array([0.25, 1.0, 0.5], np.float32)  # x counts least, z half, in the reach distances
 
 
 def door_lock(step: StepInputs) -> tuple[Array, dict[str, Array]]:

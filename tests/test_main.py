@@ -36,6 +36,22 @@ def test_help_loads_neither_jax_nor_the_physics():
     assert result.stdout.splitlines()[-1] == "[]"
 
 
+def test_importing_mwjax_claims_no_device():
+    # JAX takes most of a GPU's memory when its backend starts; a module-level jnp constant would
+    # start it at import, in processes (a benchmark's parent, a user's torch program) that never
+    # simulate, and leave the one that does without room for Warp.
+    code = (
+        "import mwjax.env, mwjax.tasks, mwjax.policies, mwjax.benchmarks, mwjax.evaluation\n"
+        "import mwjax.wrappers.gymnasium, mwjax.rendering, mwjax.sharding\n"
+        "from jax._src import xla_bridge\n"
+        "print(xla_bridge.backends_are_initialized())\n"
+    )
+    result = subprocess.run(
+        [sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, check=True
+    )
+    assert result.stdout.splitlines()[-1] == "False"
+
+
 @pytest.mark.parametrize(
     ("argv", "message"),
     [

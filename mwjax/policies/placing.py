@@ -4,12 +4,13 @@ from __future__ import annotations
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 from mwjax.policies.common import action, first_true, move, near, parse, register, xy_dist
 
 Array = jax.Array
 
-BIN = jnp.array([0.12, 0.7, 0.02])  # where bin-picking drops the cube (the target bin's centre)
+BIN = np.array([0.12, 0.7, 0.02], np.float32)  # where bin-picking drops the cube (the target bin's centre)
 
 
 @register("pick-out-of-hole-v3")

@@ -4,12 +4,13 @@ from __future__ import annotations
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 from mwjax.policies.common import Obs, action, first_true, move, near, parse, register, xy_dist
 
 Array = jax.Array
 
-UP = jnp.array([0.0, 0.0, 1.0])
+UP = np.array([0.0, 0.0, 1.0], np.float32)
 
 
 def _between(value: Array, low: float, high: float) -> Array:

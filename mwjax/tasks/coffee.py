@@ -12,10 +12,10 @@ from mwjax.tasks.spec import ConstantsFn, Frame, Placement, TaskSpec, quat_from_
 _MOVED = ("coffee_machine",)
 _HAND_INIT = (0.0, 0.4, 0.2)
 # The mug sits 22 cm in front of the machine (under its spout); the button face is 30 cm up.
-_SPOUT = jnp.array([0.0, -0.22, 0.0])
+_SPOUT = np.array([0.0, -0.22, 0.0], np.float32)
 # coffee-button's press depth (the class's max_dist) and the button face above the spout.
 _BUTTON_TRAVEL = 0.03
-_BUTTON_FACE = jnp.array([0.0, -0.22 + _BUTTON_TRAVEL, 0.3])
+_BUTTON_FACE = np.array([0.0, -0.22 + _BUTTON_TRAVEL, 0.3], np.float32)
 
 
 def _place_mug(settled: Frame, mug: jnp.ndarray, machine: jnp.ndarray, target: jnp.ndarray) -> Placement:

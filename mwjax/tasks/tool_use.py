@@ -21,7 +21,7 @@ _THERMOS_QPOS = 16
 _THERMOS_QVEL_SLIDE_Y = 16
 
 
-def _stick_contact_geometry() -> dict[str, jnp.ndarray | float]:
+def _stick_contact_geometry() -> dict[str, np.ndarray | float]:
     """Half sizes of the stick's collision box and of a finger pad box, and the pads' contact
     margin, as compiled in the scene (stick-push's grasp test, `rewards_v2.pads_touching_box`)."""
     model = load_scene(_STICK_SCENE)
@@ -32,8 +32,8 @@ def _stick_contact_geometry() -> dict[str, jnp.ndarray | float]:
     if stick.type[0] != mujoco.mjtGeom.mjGEOM_BOX or pad.type[0] != mujoco.mjtGeom.mjGEOM_BOX:
         raise AssertionError("the stick grasp test assumes box geoms")
     return {
-        "stick_half_size": jnp.asarray(stick.size, jnp.float32),
-        "pad_half_size": jnp.asarray(pad.size, jnp.float32),
+        "stick_half_size": np.asarray(stick.size, np.float32),
+        "pad_half_size": np.asarray(pad.size, np.float32),
         "contact_margin": float(pad.margin[0]),
     }
 

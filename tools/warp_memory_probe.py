@@ -1,0 +1,95 @@
+"""Where a large batch's GPU memory goes: Warp's convex-collider scratch per call, the card's use.
+
+    python tools/warp_memory_probe.py MT1:pick-place-v3 131070 --steps 500
+    python tools/warp_memory_probe.py MT1:pick-place-v3 131070 --ccd-pairs 4
+
+Builds one set at a batch, runs three random-action rollouts of `--steps` steps (the first one
+includes Warp's kernel builds and graph captures), and prints per rollout its time, the card's
+memory in use (nvidia-smi), Warp's memory-pool use and JAX's peak. At the end it prints the
+shapes of the scratch arrays that Warp's convex collider (`collision_convex.convex_narrowphase`)
+allocated and how often: the first dimension is the scene's `naccdmax` (envs x slots). It counts
+them by wrapping `wp.empty` in that module alone. A diagnostic: it neither checks overflow nor
+follows the throughput protocol (`benchmarks/throughput.py` does). Run one case per process: Warp
+keeps each captured graph's memory for the life of the process.
+"""
+
+from __future__ import annotations
+
+import argparse
+import collections
+import subprocess
+import time
+from typing import Any
+
+import jax
+import mujoco.mjx.third_party.mujoco_warp._src.collision_convex as collision_convex
+import warp as wp
+
+import mwjax
+from mwjax.benchmarks import task_names
+
+SHAPES: collections.Counter[str] = collections.Counter()
+
+
+class _CountingWarp:
+    """`warp` as `collision_convex` sees it, with `empty` counting the shapes it allocates."""
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(wp, name)
+
+    @staticmethod
+    def empty(*args: Any, **kwargs: Any) -> wp.array:
+        SHAPES[str(kwargs.get("shape", args[0] if args else None))] += 1
+        return wp.empty(*args, **kwargs)
+
+
+def card_memory_mib() -> str:
+    query = ["nvidia-smi", "--query-gpu=memory.used", "--format=csv,noheader"]
+    try:
+        return subprocess.run(query, capture_output=True, text=True).stdout.strip()
+    except OSError:
+        return "n/a (no nvidia-smi)"
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("set", help="a set name, e.g. MT10 or MT1:pick-place-v3")
+    parser.add_argument("envs", type=int, help="total envs")
+    parser.add_argument("--steps", type=int, default=20)
+    parser.add_argument("--ccd-pairs", type=int, default=None, help="ccd_pairs_per_env (default: per scene)")
+    args = parser.parse_args()
+    collision_convex.wp = _CountingWarp()
+
+    pairs = {} if args.ccd_pairs is None else {"ccd_pairs_per_env": args.ccd_pairs}
+    physics = mwjax.PhysicsConfig(**pairs)
+    env = mwjax.make(args.set, envs_per_task=args.envs // len(task_names(args.set)), physics=physics)
+    slots = {g.scene: env.physics.ccd_pairs(g.scene) for g in env.physics.groups}
+    print(f"{args.set}: {env.num_envs} envs, convex-collider slots per env {slots}", flush=True)
+
+    def rollout(state: mwjax.State, key: jax.Array) -> mwjax.State:
+        def body(state: mwjax.State, key: jax.Array) -> tuple[mwjax.State, None]:
+            action = jax.random.uniform(key, (env.num_envs, 4), minval=-1.0, maxval=1.0)
+            return env.step(state, action), None
+
+        return jax.lax.scan(body, state, jax.random.split(key, args.steps))[0]
+
+    state = jax.jit(env.reset)(jax.random.key(0))
+    run = jax.jit(rollout, donate_argnums=0)
+    device = wp.get_device()
+    for i in range(3):
+        t0 = time.perf_counter()
+        state = jax.block_until_ready(run(state, jax.random.key(i)))
+        seconds = time.perf_counter() - t0
+        stats = jax.devices()[0].memory_stats() or {}
+        pool = wp.get_mempool_used_mem_current(device) / 2**30 if device.is_cuda else 0.0
+        print(
+            f"rollout {i}: {seconds:.1f} s ({env.num_envs * args.steps / seconds:,.0f} env steps/s), "
+            f"card {card_memory_mib()}, Warp pool {pool:.2f} GiB, "
+            f"JAX peak {stats.get('peak_bytes_in_use', 0) / 2**30:.2f} GiB",
+            flush=True,
+        )
+    print("convex-collider scratch shapes (calls):", dict(SHAPES.most_common(8)))
+
+
+if __name__ == "__main__":
+    main()

@@ -72,3 +72,15 @@ def tasks_arg(text: str) -> str | list[str]:
 def rows_arg(text: str) -> int | str:
     """A buffer size on the command line: a count per env, or "per_scene"."""
     return text if text == "per_scene" else int(text)
+
+
+def build_kernels(tasks: str | list[str], physics: object = None) -> float | None:
+    """On a GPU, Warp's modules for `tasks` built side by side first (`mwjax.kernels`), rather than
+    one by one inside the first step; returns the seconds it took (None on the CPU)."""
+    import jax
+
+    if jax.default_backend() != "gpu":
+        return None
+    from mwjax import kernels
+
+    return kernels.build(tasks, physics)[1]

@@ -20,7 +20,7 @@ from pathlib import Path
 
 import jax
 import numpy as np
-from common import provenance, rows_arg, tasks_arg
+from common import build_kernels, provenance, rows_arg, tasks_arg
 
 import mwjax
 from mwjax import policies
@@ -73,6 +73,7 @@ def main() -> None:
     variants = None
     if args.goals == "mt1":
         variants = mt1_goal_variants(task_names(tasks), args.seed)
+    build_kernels(tasks, physics)
     env = mwjax.make(tasks, seed=args.seed, physics=physics, goal_variants=variants)
     policy = policies.expert_policy(env.replace(envs_per_task=args.episodes))
     run = jax.jit(evaluator(env, policy, args.episodes))

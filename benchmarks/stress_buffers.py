@@ -34,7 +34,7 @@ from collections.abc import Callable
 import jax
 import jax.numpy as jnp
 import numpy as np
-from common import provenance, result_path, tasks_arg
+from common import build_kernels, provenance, result_path, tasks_arg
 from mujoco.mjx.third_party.mujoco_warp import OverflowType
 
 import mwjax
@@ -131,6 +131,7 @@ def main() -> None:
 
     t0 = time.perf_counter()
     tasks = part_of(tasks_arg(args.set), args.part)
+    build_kernels(tasks)
     env = mwjax.make(tasks, envs_per_task=args.envs_per_task, seed=args.seed)
     act = stress_actions(env)
 

@@ -41,7 +41,7 @@ from pathlib import Path
 import jax
 import jax.numpy as jnp
 import numpy as np
-from common import provenance, result_path, rows_arg, tasks_arg
+from common import build_kernels, provenance, result_path, rows_arg, tasks_arg
 
 import mwjax
 from mwjax.benchmarks import task_names
@@ -103,6 +103,7 @@ def measure(
         raise ValueError(f"batch {total} is not divisible by the {n_tasks} tasks of {benchmark}")
     if stagger is not None:
         steps = stagger
+    kernel_build_s = build_kernels(tasks_arg(benchmark), physics)
     t0 = time.perf_counter()
     env = mwjax.make(tasks_arg(benchmark), envs_per_task=total // n_tasks, seed=0, physics=physics)
     build_s = time.perf_counter() - t0
@@ -164,6 +165,7 @@ def measure(
         "refused": "; ".join(refused) or None,
         "overflow_envs": overflow_envs,
         "rollout_s": times,
+        "kernel_build_s": kernel_build_s,  # Warp's modules, in parallel processes (GPU only)
         "build_s": build_s,
         "reset_compile_s": reset_compile_s,
         "step_compile_s": compile_s,  # tracing and lowering included

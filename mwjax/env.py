@@ -18,18 +18,18 @@ import jax.numpy as jnp
 import numpy as np
 
 from mwjax import benchmarks
+from mwjax.contracts import Frame, Kinematics, Placement, StepInputs
+from mwjax.observation import OBJECTS_SIZE, Observation
 from mwjax.physics import Physics, PhysicsConfig, PhysicsState
 from mwjax.tasks import get_task
-from mwjax.tasks.spec import Frame, Kinematics, Placement, StepInputs, TaskSpec
+from mwjax.tasks.spec import TaskSpec
 
 if TYPE_CHECKING:
     from mwjax.sharding import ShardedEnv
 
 Array = jax.Array
 
-OBS_SIZE = 39
 MAX_EPISODE_STEPS = 500
-_OBJECT_OBS = 14  # up to two objects, position + quaternion each
 _HAND_SPACE_LOW = np.array([-0.525, 0.348, -0.0525], np.float32)
 _HAND_SPACE_HIGH = np.array([0.525, 1.025, 0.7], np.float32)
 _HAND_QUAT = np.array([1.0, 0.0, 1.0, 0.0], np.float32)
@@ -319,8 +319,8 @@ class Env:
         else:
             goal_low = np.min(np.asarray(self._goal_low), axis=0)
             goal_high = np.max(np.asarray(self._goal_high), axis=0)
-        frame_low = np.concatenate([_HAND_SPACE_LOW, [-1.0], np.full(_OBJECT_OBS, -np.inf)])
-        frame_high = np.concatenate([_HAND_SPACE_HIGH, [1.0], np.full(_OBJECT_OBS, np.inf)])
+        frame_low = np.concatenate([_HAND_SPACE_LOW, [-1.0], np.full(OBJECTS_SIZE, -np.inf)])
+        frame_high = np.concatenate([_HAND_SPACE_HIGH, [1.0], np.full(OBJECTS_SIZE, np.inf)])
         low = np.concatenate([frame_low, frame_low, goal_low]).astype(np.float32)
         high = np.concatenate([frame_high, frame_high, goal_high]).astype(np.float32)
         return low, high
@@ -358,7 +358,7 @@ class Env:
 
     def observe(self, state: State, action: Array) -> State:
         """Observation, reward and success of the current physics state, as the reference computes
-        them after a step with `action`; `state.obs[:, :18]` is taken as the previous frame."""
+        them after a step with `action`; `state.obs`'s frame is taken as the previous one."""
         obs, reward, info, constants = self._observe_and_reward(
             self._kinematics(state.physics), state, action
         )
@@ -775,7 +775,7 @@ class Env:
             )
         curr = jnp.concatenate(curr_parts)
         goal = jnp.zeros_like(state.target_pos) if self.partially_observable else state.target_pos
-        obs = jnp.concatenate([curr, state.obs[:, :18], goal], axis=-1)
+        obs = jnp.concatenate([curr, Observation(state.obs).frame, goal], axis=-1)
         obs = self._clip_obs(obs)
 
         first_step = state.steps == 0
@@ -796,7 +796,7 @@ class Env:
                 m: Any = model,
                 spec: TaskSpec = rows.spec,
             ) -> tuple[Array, dict[str, Array], dict[str, Array]]:
-                step = StepInputs(frame=Frame(m, k), obs=o, action=a, target_pos=t, constants=c)
+                step = StepInputs(frame=Frame(m, k), obs=Observation(o), action=a, target_pos=t, constants=c)
                 if spec.latch is not None:
                     latched = {name: jnp.where(first, v, c[name]) for name, v in spec.latch(step).items()}
                     c = {**c, **latched}
@@ -817,7 +817,7 @@ class Env:
 
     def _clip_obs(self, obs: Array) -> Array:
         """The reference clips step observations to its observation space."""
-        inf = jnp.full((self.num_envs, _OBJECT_OBS), jnp.inf)
+        inf = jnp.full((self.num_envs, OBJECTS_SIZE), jnp.inf)
         hand_low = jnp.broadcast_to(jnp.asarray(_HAND_SPACE_LOW), (self.num_envs, 3))
         hand_high = jnp.broadcast_to(jnp.asarray(_HAND_SPACE_HIGH), (self.num_envs, 3))
         minus_one, one = -jnp.ones((self.num_envs, 1)), jnp.ones((self.num_envs, 1))
@@ -863,7 +863,7 @@ def _current_obs(spec: TaskSpec, frame: Frame) -> Array:
     """The 18-value frame: hand position, gripper opening, then objects (pos + quat, padded)."""
     pos, quat = spec.objects(frame)
     objects = jnp.concatenate([pos, quat], axis=-1).reshape(-1)
-    objects = jnp.pad(objects, (0, _OBJECT_OBS - objects.shape[0]))
+    objects = jnp.pad(objects, (0, OBJECTS_SIZE - objects.shape[0]))
     return jnp.concatenate([frame.hand_pos, frame.gripper_distance[None], objects]).astype(jnp.float32)
 
 

@@ -11,8 +11,8 @@ from __future__ import annotations
 
 import jax.numpy as jnp
 
+from mwjax.contracts import StepInputs
 from mwjax.rewards_v2 import info_terms
-from mwjax.tasks.spec import StepInputs
 
 Array = jnp.ndarray
 
@@ -81,10 +81,10 @@ def _fixture_v1(
     c2: float = 0.01,
     c3: float = 0.001,
 ) -> tuple[Array, dict[str, Array]]:
-    """Reach obs[4:7] with the tcp (or left fingertip), then progress `dist` toward 0."""
+    """Reach the object (`obs.obj`) with the tcp (or left fingertip), then progress `dist` toward 0."""
     frame = step.frame
     finger = frame.site_pos("leftEndEffector") if left_finger_only else frame.tcp_center
-    reward = _fixture_reward(step.obs[4:7], finger, dist, max_dist, clip, c2, c3)
+    reward = _fixture_reward(step.obs.obj, finger, dist, max_dist, clip, c2, c3)
     return _fixture_info(reward, dist, success_radius)
 
 
@@ -168,7 +168,7 @@ def reach_wall(step: StepInputs) -> tuple[Array, dict[str, Array]]:
 def _push_v1(step: StepInputs, success_radius: float) -> tuple[Array, dict[str, Array]]:
     """push, push-wall, push-back: reach the puck, then push it toward the goal in xy; maxPushDist
     is the reset's xy distance from obj_init_pos to the goal, and success is on that xy distance."""
-    obj, target = step.obs[4:7], step.target_pos
+    obj, target = step.obs.obj, step.target_pos
     push_dist = jnp.linalg.norm(obj[:2] - target[:2])
     max_push_dist = jnp.linalg.norm(step.constants["obj_init_pos"][:2] - target[:2])
     return _fixture_v1(step, push_dist, max_push_dist, success_radius)
@@ -198,7 +198,7 @@ def _pick_and_place_v1(
     origin), heightTarget = objHeight + `lift`, and maxPlacingDist = |(obj_init_pos xy,
     heightTarget) - goal| + heightTarget.
     """
-    obj, target = step.obs[4:7], step.target_pos
+    obj, target = step.obs.obj, step.target_pos
     obj_init_pos = step.constants["obj_init_pos"]
     obj_height = obj_init_pos[2]
     height_target = obj_height + lift
@@ -228,7 +228,7 @@ pick_place_wall = pick_place
 
 
 def peg_insert_side(step: StepInputs) -> tuple[Array, dict[str, Array]]:
-    # obs[4:7] is the peg's grasp site; away from the hole the place progress follows the peg head.
+    # `obs.obj` is the peg's grasp site; away from the hole the place progress follows the peg head.
     return _pick_and_place_v1(step, lift=0.11, z_weight=1.0, head=step.frame.site_pos("pegHead"))
 
 
@@ -236,7 +236,7 @@ def _sweep_v1(step: StepInputs, fell: Array) -> tuple[Array, dict[str, Array]]:
     """sweep and sweep-into: push's V1 reward, except that once the puck has `fell` off (into the
     goal hole or off the table) the reach term and the push distance count as 0. Reference quirk:
     the "reached" test uses the true reach distance, computed before that override."""
-    obj, target = step.obs[4:7], step.target_pos
+    obj, target = step.obs.obj, step.target_pos
     reach_dist = jnp.linalg.norm(obj - step.frame.tcp_center)
     push_dist = jnp.where(fell, 0.0, jnp.linalg.norm(obj[:2] - target[:2]))
     max_push_dist = jnp.linalg.norm(step.constants["obj_init_pos"][:2] - target[:2])
@@ -246,18 +246,18 @@ def _sweep_v1(step: StepInputs, fell: Array) -> tuple[Array, dict[str, Array]]:
 
 
 def sweep(step: StepInputs) -> tuple[Array, dict[str, Array]]:
-    return _sweep_v1(step, fell=step.obs[6] < step.constants["obj_init_pos"][2] - 0.05)
+    return _sweep_v1(step, fell=step.obs.obj[2] < step.constants["obj_init_pos"][2] - 0.05)
 
 
 def sweep_into(step: StepInputs) -> tuple[Array, dict[str, Array]]:
-    obj = step.obs[4:7]
+    obj = step.obs.obj
     fell = (obj[2] < step.constants["obj_init_pos"][2] - 0.05) & (0.4 < obj[1]) & (obj[1] < 1.0)
     return _sweep_v1(step, fell)
 
 
 def _plate_slide_v1(step: StepInputs, start: Array) -> tuple[Array, dict[str, Array]]:
     """Reach the plate, then slide it toward the goal in xy; maxDist is |start - goal| in xy."""
-    obj, target = step.obs[4:7], step.target_pos
+    obj, target = step.obs.obj, step.target_pos
     pull_dist = jnp.linalg.norm(obj[:2] - target[:2])
     return _fixture_v1(step, pull_dist, jnp.linalg.norm(start[:2] - target[:2]), success_radius=0.07)
 
@@ -280,7 +280,7 @@ def door_open(step: StepInputs) -> tuple[Array, dict[str, Array]]:
     """Pull the handle to the goal in xy (max_pull_dist: the closed handle's xy distance to the goal
     at reset). evaluate_state keeps V2's success (handle x within 8 cm of the goal's) and reports
     V1's zeros for the other terms."""
-    obj, target = step.obs[4:7], step.target_pos
+    obj, target = step.obs.obj, step.target_pos
     pull_dist = jnp.linalg.norm(obj[:2] - target[:2])
     reward = _fixture_reward(obj, step.frame.tcp_center, pull_dist, step.constants["max_pull_dist"])
     return info_terms(
@@ -294,12 +294,12 @@ def door_open(step: StepInputs) -> tuple[Array, dict[str, Array]]:
 
 
 def drawer_open(step: StepInputs) -> tuple[Array, dict[str, Array]]:
-    pull_dist = jnp.abs(step.obs[5] - step.target_pos[1])
+    pull_dist = jnp.abs(step.obs.obj[1] - step.target_pos[1])
     return _fixture_v1(step, pull_dist, max_dist=0.2, success_radius=0.03)
 
 
 def drawer_close(step: StepInputs) -> tuple[Array, dict[str, Array]]:
-    pull_dist = jnp.abs(step.obs[5] - step.target_pos[1])
+    pull_dist = jnp.abs(step.obs.obj[1] - step.target_pos[1])
     # Reference quirk: success is TARGET_RADIUS + 0.015 with the base class's TARGET_RADIUS 0.05
     # (the class sets _TARGET_RADIUS = 0.04, which evaluate_state never reads).
     return _fixture_v1(step, pull_dist, max_dist=0.15, success_radius=0.065)
@@ -309,7 +309,7 @@ def _button_v1(
     step: StepInputs, axis: int, success_radius: float, left_finger_only: bool
 ) -> tuple[Array, dict[str, Array]]:
     # maxDist is the reset's |buttonStart - hole| along the press axis: obj_to_target_init.
-    press_dist = jnp.abs(step.obs[4 + axis] - step.target_pos[axis])
+    press_dist = jnp.abs(step.obs.obj[axis] - step.target_pos[axis])
     return _fixture_v1(
         step, press_dist, step.constants["obj_to_target_init"], success_radius, left_finger_only
     )
@@ -334,14 +334,14 @@ def button_press_wall(step: StepInputs) -> tuple[Array, dict[str, Array]]:
     frame gives the reset's value."""
     frame = step.frame
     max_dist = jnp.abs(frame.site_pos("buttonStart")[2] - step.target_pos[2])
-    press_dist = jnp.abs(step.obs[5] - step.target_pos[1])
+    press_dist = jnp.abs(step.obs.obj[1] - step.target_pos[1])
     return _fixture_v1(step, press_dist, max_dist, success_radius=0.03, left_finger_only=True)
 
 
 def _window_v1(step: StepInputs) -> tuple[Array, dict[str, Array]]:
     # Slide the handle to the goal's x; maxPullDist is 0.2 and, unlike the other tasks, the
     # progress term is not clipped at 0. Success: TARGET_RADIUS 0.05.
-    pull_dist = jnp.abs(step.obs[4] - step.target_pos[0])
+    pull_dist = jnp.abs(step.obs.obj[0] - step.target_pos[0])
     return _fixture_v1(step, pull_dist, max_dist=0.2, success_radius=0.05, clip=False)
 
 
@@ -353,7 +353,7 @@ def handle_press_side(step: StepInputs) -> tuple[Array, dict[str, Array]]:
     """Push the handle down to the goal's z with the left fingertip. maxDist is the reset's
     |handleStart z - goal z| (handle_init_pos is handleStart after set_state)."""
     max_dist = jnp.abs(step.constants["handle_init_pos"][2] - step.target_pos[2])
-    press_dist = jnp.abs(step.obs[6] - step.target_pos[2])
+    press_dist = jnp.abs(step.obs.obj[2] - step.target_pos[2])
     return _fixture_v1(step, press_dist, max_dist, success_radius=0.02, left_finger_only=True)
 
 
@@ -366,14 +366,14 @@ def handle_pull_side(step: StepInputs) -> tuple[Array, dict[str, Array]]:
     frame = step.frame
     start_above_center = frame.site_pos("handleStart")[2] - frame.site_pos("handleCenter")[2]
     max_dist = jnp.abs(step.constants["obj_init_pos"][2] + start_above_center - step.target_pos[2])
-    press_dist = jnp.abs(step.obs[6] - step.target_pos[2])
+    press_dist = jnp.abs(step.obs.obj[2] - step.target_pos[2])
     return _fixture_v1(step, press_dist, max_dist, success_radius=0.08, left_finger_only=True)
 
 
 def _faucet_v1(step: StepInputs) -> tuple[Array, dict[str, Array]]:
-    # Turn the handle end (obs[4:7], without V2's offset) to the goal; maxPullDist is the reset's
+    # Turn the handle end (`obs.obj`, without V2's offset) to the goal; maxPullDist is the reset's
     # |goal - faucet base|. Success within 7 cm.
-    pull_dist = jnp.linalg.norm(step.obs[4:7] - step.target_pos)
+    pull_dist = jnp.linalg.norm(step.obs.obj - step.target_pos)
     max_dist = jnp.linalg.norm(step.target_pos - step.constants["obj_init_pos"])
     return _fixture_v1(step, pull_dist, max_dist, success_radius=0.07)
 
@@ -387,7 +387,7 @@ def dial_turn(step: StepInputs) -> tuple[Array, dict[str, Array]]:
 
     maxPullDist is |goal y - obj_init_pos y| with obj_init_pos = rand_vec, where the dial body
     stays (a fixed body the reset moves). Quirk: dial-turn's exponentials are 10x narrower."""
-    pull_dist = jnp.abs(step.obs[5] - step.target_pos[1])
+    pull_dist = jnp.abs(step.obs.obj[1] - step.target_pos[1])
     max_dist = jnp.abs(step.target_pos[1] - step.frame.body_pos("dial")[1])
     return _fixture_v1(step, pull_dist, max_dist, success_radius=0.07, c2=0.001, c3=0.0001)
 
@@ -400,7 +400,7 @@ def assembly(step: StepInputs) -> tuple[Array, dict[str, Array]]:
     goal = step.target_pos
     height_target, obj_height = c["height_target"], c["obj_height"]
     # Reached at the observed handle point, placed by the nut body.
-    reach, reach_dist = _reach_v1(step, step.obs[4:7], c["init_tcp"][2], 0.04, 1.0, 0.04)
+    reach, reach_dist = _reach_v1(step, step.obs.obj, c["init_tcp"][2], 0.04, 1.0, 0.04)
     nut = step.frame.body_pos("RoundNut")
     placing_dist = jnp.linalg.norm(nut[:2] - goal[:2])
     height_error = jnp.abs(nut[2] - obj_height)
@@ -427,7 +427,7 @@ def assembly(step: StepInputs) -> tuple[Array, dict[str, Array]]:
 
 def disassemble(step: StepInputs) -> tuple[Array, dict[str, Array]]:
     c = step.constants
-    obj = step.obs[4:7]
+    obj = step.obs.obj
     height_target, obj_height = c["height_target"], c["obj_height"]
     reach, reach_dist = _reach_v1(step, obj, c["init_tcp"][2], 0.04, 2.0, 0.04)
     placing_dist = jnp.linalg.norm(obj - step.target_pos)
@@ -444,7 +444,7 @@ def disassemble(step: StepInputs) -> tuple[Array, dict[str, Array]]:
     pick = jnp.where(off_peg, 100.0 * height_target, pick)
     return info_terms(
         reach + pick + place,
-        success=step.obs[6] > step.target_pos[2],
+        success=step.obs.obj[2] > step.target_pos[2],
         near_object=0.0,
         grasp_reward=0.0,
         in_place_reward=0.0,
@@ -454,7 +454,7 @@ def disassemble(step: StepInputs) -> tuple[Array, dict[str, Array]]:
 
 def peg_unplug_side(step: StepInputs) -> tuple[Array, dict[str, Array]]:
     c = step.constants
-    obj = step.obs[4:7]
+    obj = step.obs.obj
     # Quirk: the height change is measured from hand_init_pos, not init_tcp.
     reach, reach_dist = _reach_v1(step, obj, c["hand_init_pos"][2], 0.05, 2.0, 0.05)
     placing_dist = jnp.linalg.norm(obj[:2] - step.target_pos[:2])
@@ -473,7 +473,7 @@ def peg_unplug_side(step: StepInputs) -> tuple[Array, dict[str, Array]]:
 def _lift_and_place(step: StepInputs, pick_baseline: Array | float) -> tuple[Array, dict[str, Array]]:
     """pick-out-of-hole and shelf-place: reach, lift to height_target, carry to the goal."""
     c = step.constants
-    obj = step.obs[4:7]
+    obj = step.obs.obj
     height_target, obj_height = c["height_target"], c["obj_height"]
     reach, reach_dist = _reach_v1(step, obj, c["init_tcp"][2], 0.05, 2.0, 0.05)
     placing_dist = jnp.linalg.norm(obj - step.target_pos)
@@ -504,7 +504,7 @@ def shelf_place(step: StepInputs) -> tuple[Array, dict[str, Array]]:
 
 def bin_picking(step: StepInputs) -> tuple[Array, dict[str, Array]]:
     c = step.constants
-    obj = step.obs[4:7]
+    obj = step.obs.obj
     goal = step.target_pos
     height_target, obj_height = c["height_target"], c["obj_height"]
     reach, reach_dist = _reach_v1(step, obj, c["init_tcp"][2], 0.06, 1.0, 0.05)
@@ -551,7 +551,7 @@ def basketball(step: StepInputs) -> tuple[Array, dict[str, Array]]:
 
 
 def soccer(step: StepInputs) -> tuple[Array, dict[str, Array]]:
-    obj = step.obs[4:7]
+    obj = step.obs.obj
     reach_dist = jnp.linalg.norm(step.frame.tcp_center - obj)
     push_dist = jnp.linalg.norm(obj[:2] - step.target_pos[:2])
     push = jnp.where(reach_dist < 0.05, _place_v1(push_dist, step.constants["max_push_dist"]), 0.0)
@@ -580,9 +580,10 @@ def _tool_v1(step: StepInputs, tool: Array, tool_height: Array, drop_dist: Array
 
 def _stick_v1(step: StepInputs, c2: float, c3: float) -> tuple[Array, Array]:
     """stick-push and stick-pull: bring the "object" to the stick, then it to the goal (in the
-    plane). Quirk: the object is obs[6:9], the stick's z and the first two components of its
-    quaternion, not the thermos. Returns the reward and the object-goal distance."""
-    stick, obj = step.obs[4:7], step.obs[6:9]
+    plane). Quirk: the object is the observation's values 6 to 8, the stick's z and the first two
+    components of its quaternion, not the thermos. Returns the reward and the object-goal distance."""
+    stick = step.obs.obj
+    obj = jnp.concatenate([stick[2:], step.obs.obj_quat[:2]])
     goal_dist = jnp.linalg.norm(obj[:2] - step.target_pos[:2])
     place_dist = jnp.linalg.norm(obj - stick)
     carry = progress_reward(place_dist, step.constants["max_place_dist"])
@@ -610,7 +611,7 @@ def stick_push(step: StepInputs) -> tuple[Array, dict[str, Array]]:
 def stick_pull(step: StepInputs) -> tuple[Array, dict[str, Array]]:
     reward, pull_dist = _stick_v1(step, c2=0.01, c3=0.001)
     # Success is V2's: the thermos handle near the goal with the stick hooked in it.
-    handle, end_of_stick = step.obs[11:14], step.frame.site_pos("stick_end")
+    handle, end_of_stick = step.obs.obj2, step.frame.site_pos("stick_end")
     inserted = (
         (end_of_stick[0] >= handle[0])
         & (jnp.abs(end_of_stick[1] - handle[1]) <= 0.040)
@@ -632,7 +633,7 @@ def hammer(step: StepInputs) -> tuple[Array, dict[str, Array]]:
     hammer_dist = jnp.linalg.norm(nail - frame.geom_pos("HammerHead"))
     screw_dist = jnp.abs(nail[1] - step.target_pos[1])
     carry = progress_reward(hammer_dist + screw_dist, step.constants["max_hammer_dist"])
-    reward = _tool_v1(step, step.obs[4:7], step.constants["hammer_height"], hammer_dist, carry)
+    reward = _tool_v1(step, step.obs.obj, step.constants["hammer_height"], hammer_dist, carry)
     # V1 returns 0 for the terms evaluate_state reports (near_object is its reward_ready).
     return info_terms(
         reward,
@@ -669,7 +670,7 @@ def box_close(step: StepInputs) -> tuple[Array, dict[str, Array]]:
     """`SawyerBoxCloseEnvV3.compute_reward` (v1): reach the lid, lift it to heightTarget, carry it
     to the box. Markov: pickCompleted is recomputed from the current lid height every step."""
     c = step.constants
-    lid, target = step.obs[4:7], step.target_pos
+    lid, target = step.obs.obj, step.target_pos
     placing_dist = jnp.linalg.norm(lid - target)
     reach_rew, reach_dist = _reach_v1(step, lid, c["init_tcp"][2], 0.05, 2.0, 0.05)
     height_target, obj_height = c["height_target"], c["obj_height"]
@@ -687,7 +688,7 @@ def box_close(step: StepInputs) -> tuple[Array, dict[str, Array]]:
 def coffee_button(step: StepInputs) -> tuple[Array, dict[str, Array]]:
     """Press the button along y, reached with the left fingertip (as the front buttons do); maxDist
     is the reset's |buttonStart y - goal y|, success within 2 cm."""
-    button = step.obs[4:7]
+    button = step.obs.obj
     press_dist = jnp.abs(button[1] - step.target_pos[1])
     reward = _fixture_reward(
         button, step.frame.site_pos("leftEndEffector"), press_dist, step.constants["max_press_dist"]
@@ -699,7 +700,7 @@ def coffee_button(step: StepInputs) -> tuple[Array, dict[str, Array]]:
 def _coffee_mug(step: StepInputs, reach_rew: Array, max_dist: Array) -> tuple[Array, dict[str, Array]]:
     """coffee-pull's and coffee-push's v1 progress of the mug toward the goal in the plane once
     the fingers are at it; success on the 3-d distance within 7 cm."""
-    mug, target = step.obs[4:7], step.target_pos
+    mug, target = step.obs.obj, step.target_pos
     reach_dist = jnp.linalg.norm(step.frame.tcp_center - mug)
     slide_rew = _progress_once_reached(reach_dist, jnp.linalg.norm(mug[:2] - target[:2]), max_dist)
     # evaluate_state reads V1's zero tcp distance as near the object.
@@ -708,7 +709,7 @@ def _coffee_mug(step: StepInputs, reach_rew: Array, max_dist: Array) -> tuple[Ar
 
 
 def coffee_pull(step: StepInputs) -> tuple[Array, dict[str, Array]]:
-    mug = step.obs[4:7]
+    mug = step.obs.obj
     reach_dist = jnp.linalg.norm(step.frame.tcp_center - mug)
     # Reference quirk: "reachDistxy" is the norm of the point (mug x, mug y, init_tcp z), not a
     # distance; it never drops below 0.05 on this table, so the reach term is -that norm.
@@ -720,13 +721,13 @@ def coffee_pull(step: StepInputs) -> tuple[Array, dict[str, Array]]:
 
 def coffee_push(step: StepInputs) -> tuple[Array, dict[str, Array]]:
     return _coffee_mug(
-        step, -jnp.linalg.norm(step.frame.tcp_center - step.obs[4:7]), step.constants["max_push_dist"]
+        step, -jnp.linalg.norm(step.frame.tcp_center - step.obs.obj), step.constants["max_push_dist"]
     )
 
 
 def lever_pull(step: StepInputs) -> tuple[Array, dict[str, Array]]:
     """Reach the lever's end, pull it to the goal above the axis (maxPullDist: |goal - lever base|)."""
-    lever = step.obs[4:7]
+    lever = step.obs.obj
     pull_dist = jnp.linalg.norm(lever - step.target_pos)
     reward = _fixture_reward(lever, step.frame.tcp_center, pull_dist, step.constants["max_pull_dist"])
     # Quirk: evaluate_state reads V1's pull distance as lever_error, so success is
@@ -740,7 +741,7 @@ def lever_pull(step: StepInputs) -> tuple[Array, dict[str, Array]]:
 
 def door_close(step: StepInputs) -> tuple[Array, dict[str, Array]]:
     """Swing the handle to the goal in xy (door-open's reward); success within 8 cm."""
-    obj, target = step.obs[4:7], step.target_pos
+    obj, target = step.obs.obj, step.target_pos
     pull_dist = jnp.linalg.norm(obj[:2] - target[:2])
     reward = _fixture_reward(obj, step.frame.tcp_center, pull_dist, step.constants["max_pull_dist"])
     # evaluate_state reports constants for near_object and grasp_reward, and V1's 0 as in place.
@@ -756,7 +757,7 @@ def door_close(step: StepInputs) -> tuple[Array, dict[str, Array]]:
 
 def door_lock(step: StepInputs) -> tuple[Array, dict[str, Array]]:
     """door-lock and door-unlock: move the lock point to the goal; success within 2 cm."""
-    pull_dist = jnp.linalg.norm(step.obs[4:7] - step.target_pos)
+    pull_dist = jnp.linalg.norm(step.obs.obj - step.target_pos)
     return _fixture_v1(step, pull_dist, step.constants["max_pull_dist"], success_radius=0.02)
 
 
@@ -768,7 +769,7 @@ handle_press = handle_press_side
 def handle_pull(step: StepInputs) -> tuple[Array, dict[str, Array]]:
     """Lift the handle's right end to the goal's z, reached with the left fingertip; success within
     the base class's TARGET_RADIUS (5 cm)."""
-    press_dist = jnp.abs(step.obs[6] - step.target_pos[2])
+    press_dist = jnp.abs(step.obs.obj[2] - step.target_pos[2])
     return _fixture_v1(
         step, press_dist, step.constants["max_pull_dist"], success_radius=0.05, left_finger_only=True
     )

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import jax.numpy as jnp
 
-from mwjax.tasks.spec import StepInputs
+from mwjax.contracts import StepInputs
 
 Array = jnp.ndarray
 
@@ -207,8 +207,8 @@ def _pick_place_caging(step: StepInputs, obj_pos: Array) -> Array:
 
 
 def pick_place(step: StepInputs) -> tuple[Array, dict[str, Array]]:
-    obj = step.obs[4:7]
-    tcp_opened = step.obs[3]
+    obj = step.obs.obj
+    tcp_opened = step.obs.gripper
     tcp = step.frame.tcp_center
     target = step.target_pos
     obj_init_pos = step.constants["obj_init_pos"]
@@ -293,7 +293,7 @@ def _in_place(step: StepInputs, obj: Array, target: Array) -> tuple[Array, Array
 def _push_terms(step: StepInputs) -> tuple[Array, Array, Array, Array]:
     """push's and hand-insert's shared terms: object-to-target distance, in place, the
     high-density caging of a 1.5 cm object, and the hand-to-object distance."""
-    obj = step.obs[4:7]
+    obj = step.obs.obj
     target_to_obj, in_place = _in_place(step, obj, step.target_pos)
     object_grasped = gripper_caging(
         step,
@@ -308,7 +308,7 @@ def _push_terms(step: StepInputs) -> tuple[Array, Array, Array, Array]:
 
 
 def push(step: StepInputs) -> tuple[Array, dict[str, Array]]:
-    tcp_opened = step.obs[3]
+    tcp_opened = step.obs.gripper
     target_to_obj, in_place, object_grasped, tcp_to_obj = _push_terms(step)
     reward = 2.0 * object_grasped
     # Quirk: `reward += 1.0 + reward + 5.0 * in_place` adds the caging term a second time.
@@ -336,8 +336,8 @@ def _around_wall(
     The base is `2 * caging` for push-wall (high density caging) and `hamacher(caging, in_place
     at midpoint)` for pick-place-wall (plain caging), whose bonus also needs the puck lifted.
     """
-    obj = step.obs[4:7]
-    tcp_opened = step.obs[3]
+    obj = step.obs.obj
+    tcp_opened = step.obs.gripper
     target = step.target_pos
     obj_init_pos = step.constants["obj_init_pos"]
     tcp_to_obj = jnp.linalg.norm(obj - step.frame.tcp_center)
@@ -381,7 +381,7 @@ def _around_wall(
 
 def push_wall(step: StepInputs) -> tuple[Array, dict[str, Array]]:
     # The midpoint's z follows the puck (so only x and y count).
-    midpoint = jnp.stack([-0.05, 0.77, step.obs[6]])
+    midpoint = jnp.stack([-0.05, 0.77, step.obs.obj[2]])
     return _around_wall(step, midpoint, jnp.array([3.0, 1.0, 1.0]), pick=False)
 
 
@@ -430,8 +430,8 @@ def _pad_gripping_caging(
 
 
 def push_back(step: StepInputs) -> tuple[Array, dict[str, Array]]:
-    obj = step.obs[4:7]
-    tcp_opened = step.obs[3]
+    obj = step.obs.obj
+    tcp_opened = step.obs.gripper
     target = step.target_pos
     tcp_to_obj = jnp.linalg.norm(obj - step.frame.tcp_center)
     target_to_obj = jnp.linalg.norm(obj - target)
@@ -462,8 +462,8 @@ def push_back(step: StepInputs) -> tuple[Array, dict[str, Array]]:
 
 def peg_insert_side(step: StepInputs) -> tuple[Array, dict[str, Array]]:
     frame = step.frame
-    obj = step.obs[4:7]
-    tcp_opened = step.obs[3]
+    obj = step.obs.obj
+    tcp_opened = step.obs.gripper
     target = step.target_pos
     obj_head = frame.site_pos("pegHead")
     obj_init_pos = step.constants["obj_init_pos"]
@@ -518,9 +518,8 @@ def peg_insert_side(step: StepInputs) -> tuple[Array, dict[str, Array]]:
 def door_open(step: StepInputs) -> tuple[Array, dict[str, Array]]:
     """`SawyerDoorEnvV3.compute_reward` (v2): get above a funnel floor near the handle, then
     swing the hinge open."""
-    obs = step.obs
-    hand = obs[:3]
-    door = obs[4:7] + jnp.array([-0.05, 0.0, 0.0])
+    hand = step.obs.hand
+    door = step.obs.obj + jnp.array([-0.05, 0.0, 0.0])
     theta = step.frame.joint_qpos("doorjoint")
     reward_grab = (jnp.clip(step.action[3], -1.0, 1.0) + 1.0) / 2.0
 
@@ -544,7 +543,7 @@ def door_open(step: StepInputs) -> tuple[Array, dict[str, Array]]:
     )
     reward = 2.0 * hamacher_product(ready_to_open, reward_grab) + 8.0 * opened
     # Success and the reward override look only at the handle's x against the goal's x.
-    success = jnp.abs(obs[4] - step.target_pos[0]) <= 0.08
+    success = jnp.abs(step.obs.obj[0] - step.target_pos[0]) <= 0.08
     reward = jnp.where(success, 10.0, reward)
     return info_terms(
         reward,
@@ -559,8 +558,8 @@ def door_open(step: StepInputs) -> tuple[Array, dict[str, Array]]:
 def drawer_open(step: StepInputs) -> tuple[Array, dict[str, Array]]:
     """`SawyerDrawerOpenEnvV3.compute_reward` (v2): reach the handle, pull it to the goal."""
     max_dist = 0.2
-    gripper = step.obs[:3]  # quirk: the hand body position, while the init term uses init_tcp
-    handle = step.obs[4:7]
+    gripper = step.obs.hand  # quirk: the hand body position, while the init term uses init_tcp
+    handle = step.obs.obj
     target = step.target_pos
     handle_error = jnp.linalg.norm(handle - target)
     reward_for_opening = tolerance(handle_error, bounds=(0.0, 0.02), margin=max_dist, sigmoid="long_tail")
@@ -590,7 +589,7 @@ def drawer_close(step: StepInputs) -> tuple[Array, dict[str, Array]]:
     the drawer shut."""
     # Quirk: the class sets _TARGET_RADIUS = 0.04 but reads the base class's TARGET_RADIUS (0.05).
     radius = TARGET_RADIUS
-    obj = step.obs[4:7]
+    obj = step.obs.obj
     tcp = step.frame.tcp_center
     target = step.target_pos
     obj_init_pos, init_tcp = step.constants["obj_init_pos"], step.constants["init_tcp"]
@@ -632,7 +631,7 @@ def drawer_close(step: StepInputs) -> tuple[Array, dict[str, Array]]:
 
 def _button_terms(step: StepInputs, axis: int, near_radius: float) -> tuple[Array, Array, Array, Array]:
     """The terms every V2 button reward shares: reach the button, press it along `axis`."""
-    obj = step.obs[4:7]
+    obj = step.obs.obj
     tcp_to_obj = jnp.linalg.norm(obj - step.frame.tcp_center)
     # Quirk: the "initial" reach distance uses the current button position with the initial tcp.
     tcp_to_obj_init = jnp.linalg.norm(obj - step.constants["init_tcp"])
@@ -681,24 +680,24 @@ def _button_reach_press(
 
 
 def button_press_topdown(step: StepInputs) -> tuple[Array, dict[str, Array]]:
-    return _button_reach_press(step, 2, 0.01, 1.0 - step.obs[3], (5.0, 5.0), 0.03, 0.024)
+    return _button_reach_press(step, 2, 0.01, 1.0 - step.obs.gripper, (5.0, 5.0), 0.03, 0.024)
 
 
 def button_press_topdown_wall(step: StepInputs) -> tuple[Array, dict[str, Array]]:
-    # Quirk: the wall variant's "tcp_closed" is max(obs[3], 0) (the opening), topdown's 1 - obs[3].
-    return _button_reach_press(step, 2, 0.01, jnp.maximum(step.obs[3], 0.0), (5.0, 5.0), 0.03, 0.024)
+    # Quirk: the wall variant's "tcp_closed" is max(opening, 0), topdown's 1 - opening.
+    return _button_reach_press(step, 2, 0.01, jnp.maximum(step.obs.gripper, 0.0), (5.0, 5.0), 0.03, 0.024)
 
 
 def button_press(step: StepInputs) -> tuple[Array, dict[str, Array]]:
-    # Quirk: "tcp_closed" is max(obs[3], 0), i.e. the gripper opening.
-    return _button_reach_press(step, 1, 0.05, jnp.maximum(step.obs[3], 0.0), (2.0, 8.0), 0.05, 0.02)
+    # Quirk: "tcp_closed" is max(opening, 0): the gripper's opening, not its closing.
+    return _button_reach_press(step, 1, 0.05, jnp.maximum(step.obs.gripper, 0.0), (2.0, 8.0), 0.05, 0.02)
 
 
 def button_press_wall(step: StepInputs) -> tuple[Array, dict[str, Array]]:
     terms = _button_terms(step, 1, 0.01)
     tcp_to_obj, _, near_button, button_pressed = terms
-    far = 2.0 * hamacher_product((1.0 - step.obs[3]) / 2.0, near_button)
-    near = 2.0 + 2.0 * (1.0 + step.obs[3]) + 4.0 * button_pressed**2
+    far = 2.0 * hamacher_product((1.0 - step.obs.gripper) / 2.0, near_button)
+    near = 2.0 + 2.0 * (1.0 + step.obs.gripper) + 4.0 * button_pressed**2
     reward = jnp.where(tcp_to_obj > 0.07, far, near)
     return _button_info(reward, 0.03, terms)
 
@@ -799,8 +798,8 @@ def _handle_pull(
     success_radius: float,
 ) -> tuple[Array, dict[str, Array]]:
     """The shared V2 handle-pull reward: cage the handle, lift it to the goal."""
-    obj = step.obs[4:7]
-    tcp_opened = step.obs[3]
+    obj = step.obs.obj
+    tcp_opened = step.obs.gripper
     in_place = tolerance(
         target_to_obj,
         bounds=(0.0, TARGET_RADIUS),
@@ -834,7 +833,7 @@ def _handle_pull(
 
 
 def handle_pull_side(step: StepInputs) -> tuple[Array, dict[str, Array]]:
-    obj, target = step.obs[4:7], step.target_pos
+    obj, target = step.obs.obj, step.target_pos
     target_to_obj_init = jnp.linalg.norm(step.constants["obj_init_pos"] - target)
     # Quirk: success is obj_to_target <= 0.08 while the reward's 10.0 needs < TARGET_RADIUS (0.05).
     return _handle_pull(
@@ -889,11 +888,11 @@ def _faucet(step: StepInputs, obj: Array) -> tuple[Array, dict[str, Array]]:
 
 def faucet_open(step: StepInputs) -> tuple[Array, dict[str, Array]]:
     # Quirk: faucet-open shifts the observed handle by (-0.04, 0, 0.03); faucet-close does not.
-    return _faucet(step, step.obs[4:7] + jnp.array([-0.04, 0.0, 0.03]))
+    return _faucet(step, step.obs.obj + jnp.array([-0.04, 0.0, 0.03]))
 
 
 def faucet_close(step: StepInputs) -> tuple[Array, dict[str, Array]]:
-    return _faucet(step, step.obs[4:7])
+    return _faucet(step, step.obs.obj)
 
 
 def dial_turn(step: StepInputs) -> tuple[Array, dict[str, Array]]:
@@ -944,7 +943,7 @@ def dial_turn(step: StepInputs) -> tuple[Array, dict[str, Array]]:
 def _plate_terms(step: StepInputs, margin_offset: float) -> tuple[Array, Array, Array, Array, Array]:
     """Distances and tolerance terms every plate-slide variant shares; the side and back variants
     shrink both margins by TARGET_RADIUS (`margin_offset`)."""
-    obj, target, tcp = step.obs[4:7], step.target_pos, step.frame.tcp_center
+    obj, target, tcp = step.obs.obj, step.target_pos, step.frame.tcp_center
     obj_init_pos, init_tcp = step.constants["obj_init_pos"], step.constants["init_tcp"]
     obj_to_target = jnp.linalg.norm(obj - target)
     in_place = tolerance(
@@ -998,7 +997,7 @@ def plate_slide_side(step: StepInputs) -> tuple[Array, dict[str, Array]]:
 def _sweep_reward(
     step: StepInputs, target: Array, grip_success_margin: float, x_z_success_margin: float
 ) -> tuple[Array, dict[str, Array]]:
-    obj = step.obs[4:7]
+    obj = step.obs.obj
     obj_to_target, in_place = _in_place(step, obj, target)
     tcp_to_obj = jnp.linalg.norm(obj - step.frame.tcp_center)
     object_grasped = _pad_gripping_caging(step, obj, 0.02, grip_success_margin, x_z_success_margin)
@@ -1020,7 +1019,7 @@ def sweep(step: StepInputs) -> tuple[Array, dict[str, Array]]:
 
 def sweep_into(step: StepInputs) -> tuple[Array, dict[str, Array]]:
     # The target's z follows the puck (so only x and y count), margin included.
-    target = jnp.stack([step.target_pos[0], step.target_pos[1], step.obs[6]])
+    target = jnp.stack([step.target_pos[0], step.target_pos[1], step.obs.obj[2]])
     return _sweep_reward(step, target, grip_success_margin=0.025, x_z_success_margin=0.01)
 
 
@@ -1036,13 +1035,13 @@ def _wrench(
 ) -> tuple[Array, dict[str, Array]]:
     """The shared V2 nut reward of assembly and disassemble: cage the nut's handle, keep the nut
     lying flat, bring it to its place (`in_place`)."""
-    hand, wrench = step.obs[:3], step.obs[4:7]
+    hand, wrench = step.obs.hand, step.obs.obj
     # The caging term assumes a round object; the handle is long in x, so within half its length
     # (0.02 / 2) of the hand the handle's x is taken to be the hand's.
     wrench_x = jnp.where(jnp.abs(wrench[0] - hand[0]) < 0.01, hand[0], wrench[0])
     wrench_threshed = wrench.at[0].set(wrench_x)
     # Distance of the nut's xquat (w, x, y, z) from lying flat, about (0.707, 0, 0, 0.707).
-    quat_error = jnp.linalg.norm(step.obs[7:11] - jnp.array([0.707, 0.0, 0.0, 0.707]))
+    quat_error = jnp.linalg.norm(step.obs.obj_quat - jnp.array([0.707, 0.0, 0.0, 0.707]))
     reward_quat = jnp.maximum(1.0 - quat_error / 0.4, 0.0)
     reward_grab = gripper_caging(
         step,
@@ -1098,13 +1097,13 @@ def disassemble(step: StepInputs) -> tuple[Array, dict[str, Array]]:
     placed = tolerance(jnp.linalg.norm(pos_error), bounds=(0.0, 0.02), margin=0.2, sigmoid="long_tail")
     in_place = 0.1 * lifted + 0.9 * placed
     # Success is the observed handle point above the target's height.
-    return _wrench(step, in_place, step.obs[6] > step.target_pos[2], high_density=True)
+    return _wrench(step, in_place, step.obs.obj[2] > step.target_pos[2], high_density=True)
 
 
 def peg_unplug_side(step: StepInputs) -> tuple[Array, dict[str, Array]]:
     """`SawyerPegUnplugSideEnvV3.compute_reward` (v2): grasp the plug, pull it out sideways."""
-    obj = step.obs[4:7]
-    tcp_opened = step.obs[3]
+    obj = step.obs.obj
+    tcp_opened = step.obs.gripper
     target = step.target_pos
     obj_init_pos = step.constants["obj_init_pos"]
     tcp_to_obj = jnp.linalg.norm(obj - step.frame.tcp_center)
@@ -1141,7 +1140,7 @@ def peg_unplug_side(step: StepInputs) -> tuple[Array, dict[str, Array]]:
 def pick_out_of_hole(step: StepInputs) -> tuple[Array, dict[str, Array]]:
     """`SawyerPickOutOfHoleEnvV3.compute_reward` (v2): grasp the peg in the hole, lift it out to
     the goal while the tcp stays above a funnel around the hole."""
-    obj = step.obs[4:7]
+    obj = step.obs.obj
     tcp = step.frame.tcp_center
     target = step.target_pos
     obj_init_pos = step.constants["obj_init_pos"]
@@ -1167,7 +1166,7 @@ def pick_out_of_hole(step: StepInputs) -> tuple[Array, dict[str, Array]]:
     )
     reward = hamacher_product(object_grasped, in_place)
     # Near, lifted 2 cm, and the fingers not pinched shut on nothing.
-    grasped = (tcp_to_obj < 0.04) & (obj[2] - 0.02 > obj_init_pos[2]) & (step.obs[3] >= 0.33)
+    grasped = (tcp_to_obj < 0.04) & (obj[2] - 0.02 > obj_init_pos[2]) & (step.obs.gripper >= 0.33)
     reward = jnp.where(grasped, reward + 1.0 + 5.0 * hamacher_product(in_place, above_floor), reward)
     # Quirk: the override reads the base class's TARGET_RADIUS (0.05), not the class's 0.02.
     reward = jnp.where(obj_to_target < TARGET_RADIUS, 10.0, reward)
@@ -1184,8 +1183,8 @@ def pick_out_of_hole(step: StepInputs) -> tuple[Array, dict[str, Array]]:
 def shelf_place(step: StepInputs) -> tuple[Array, dict[str, Array]]:
     """`SawyerShelfPlaceEnvV3.compute_reward` (v2): pick the block, place it on the shelf, with
     the in-place term withdrawn below the shelf board."""
-    obj = step.obs[4:7]
-    tcp_opened = step.obs[3]
+    obj = step.obs.obj
+    tcp_opened = step.obs.gripper
     target = step.target_pos
     obj_init_pos = step.constants["obj_init_pos"]
     obj_to_target = jnp.linalg.norm(obj - target)
@@ -1229,8 +1228,8 @@ def shelf_place(step: StepInputs) -> tuple[Array, dict[str, Array]]:
 def bin_picking(step: StepInputs) -> tuple[Array, dict[str, Array]]:
     """`SawyerBinPickingEnvV3.compute_reward` (v2): carry the cube from its bin to the goal bin,
     the hand kept above funnels around both bins."""
-    hand = step.obs[:3]
-    obj = step.obs[4:7]
+    hand = step.obs.hand
+    obj = step.obs.obj
     target = step.target_pos
     obj_init_pos = step.constants["obj_init_pos"]
     target_to_obj = jnp.linalg.norm(obj - target)
@@ -1259,7 +1258,7 @@ def bin_picking(step: StepInputs) -> tuple[Array, dict[str, Array]]:
     reward = hamacher_product(object_grasped, in_place)
     # Quirk: "near" is measured from the hand body, not the tcp.
     near_object = jnp.linalg.norm(obj - hand) < 0.04
-    grasped = near_object & (obj[2] - 0.02 > obj_init_pos[2]) & (step.obs[3] >= 0.43)
+    grasped = near_object & (obj[2] - 0.02 > obj_init_pos[2]) & (step.obs.gripper >= 0.43)
     reward = jnp.where(grasped, reward + 1.0 + 5.0 * hamacher_product(above_floor, in_place), reward)
     reward = jnp.where(target_to_obj < TARGET_RADIUS, 10.0, reward)
     return info_terms(
@@ -1277,8 +1276,8 @@ def bin_picking(step: StepInputs) -> tuple[Array, dict[str, Array]]:
 
 def basketball(step: StepInputs) -> tuple[Array, dict[str, Array]]:
     radius = 0.08  # the class's TARGET_RADIUS
-    obj = step.obs[4:7]
-    tcp_opened = step.obs[3]
+    obj = step.obs.obj
+    tcp_opened = step.obs.gripper
     obj_init_pos = step.constants["obj_init_pos"]
     # Aim slightly above the hoop, and count height errors double.
     target = step.target_pos.at[2].set(0.3)
@@ -1317,7 +1316,7 @@ def basketball(step: StepInputs) -> tuple[Array, dict[str, Array]]:
 
 def soccer(step: StepInputs) -> tuple[Array, dict[str, Array]]:
     radius = 0.07  # the class's TARGET_RADIUS
-    obj = step.obs[4:7]
+    obj = step.obs.obj
     target = step.target_pos
     scale = jnp.array([3.0, 1.0, 1.0])  # x errors count triple
     tcp_to_obj = jnp.linalg.norm(obj - step.frame.tcp_center)
@@ -1383,9 +1382,9 @@ def stick_push(
     geom sizes and pad contact margin come from the task (see `pads_touching_box`)."""
     radius = 0.12
     stick_init_pos = step.constants["stick_init_pos"]
-    stick = step.obs[4:7] + jnp.array([0.015, 0.0, 0.0])
-    container = step.obs[11:14]
-    tcp_opened = step.obs[3]
+    stick = step.obs.obj + jnp.array([0.015, 0.0, 0.0])
+    container = step.obs.obj2
+    tcp_opened = step.obs.gripper
     target = step.target_pos
     tcp_to_stick = jnp.linalg.norm(stick - step.frame.tcp_center)
     stick_in_place = tolerance(
@@ -1425,7 +1424,7 @@ def stick_push(
     object_grasped = jnp.where(lifted, 1.0, object_grasped)
     # Success also needs the stick held: both pads touching it, gripper open > 0, stick lifted.
     touching = pads_touching_box(step, "objGeom", stick_half_size, pad_half_size, contact_margin)
-    grasped = touching & (tcp_opened > 0) & (step.obs[6] - 0.01 > stick_init_pos[2])
+    grasped = touching & (tcp_opened > 0) & (step.obs.obj[2] - 0.01 > stick_init_pos[2])
     return info_terms(
         reward,
         success=grasped & (container_to_target <= radius),
@@ -1449,9 +1448,9 @@ def stick_pull(step: StepInputs) -> tuple[Array, dict[str, Array]]:
     """Lift the stick, hook it into the thermos handle, and pull the thermos to the goal."""
     radius = 0.05
     c = step.constants
-    stick = step.obs[4:7]
-    handle = step.obs[11:14]
-    tcp_opened = step.obs[3]
+    stick = step.obs.obj
+    handle = step.obs.obj2
+    tcp_opened = step.obs.gripper
     target = step.target_pos
     end_of_stick = step.frame.site_pos("stick_end")
     # The thermos is measured 5 cm past its handle in x (from its body origin at reset).
@@ -1509,8 +1508,8 @@ def stick_pull(step: StepInputs) -> tuple[Array, dict[str, Array]]:
 
 def hammer(step: StepInputs) -> tuple[Array, dict[str, Array]]:
     """Grasp the hammer lying flat and drive the nail in with its head."""
-    hand = step.obs[:3]
-    hammer_pos = step.obs[4:7]
+    hand = step.obs.hand
+    hammer_pos = step.obs.obj
     head = hammer_pos + jnp.array([0.16, 0.06, 0.0])
     # The caging term treats the object as a sphere: along the handle (half its 0.14 m length)
     # the hammer's x is taken to be the hand's.
@@ -1518,7 +1517,7 @@ def hammer(step: StepInputs) -> tuple[Array, dict[str, Array]]:
     hammer_threshed = hammer_pos.at[0].set(jnp.where(on_handle, hand[0], hammer_pos[0]))
     # Lying flat is the identity quaternion; the error is a plain vector distance.
     reward_quat = jnp.maximum(
-        1.0 - jnp.linalg.norm(step.obs[7:11] - jnp.array([1.0, 0.0, 0.0, 0.0])) / 0.4, 0.0
+        1.0 - jnp.linalg.norm(step.obs.obj_quat - jnp.array([1.0, 0.0, 0.0, 0.0])) / 0.4, 0.0
     )
     reward_grab = gripper_caging(
         step,
@@ -1547,7 +1546,7 @@ def hammer(step: StepInputs) -> tuple[Array, dict[str, Array]]:
 
 
 def hand_insert(step: StepInputs) -> tuple[Array, dict[str, Array]]:
-    tcp_opened = step.obs[3]
+    tcp_opened = step.obs.gripper
     target_to_obj, in_place, object_grasped, tcp_to_obj = _push_terms(step)
     reward = hamacher_product(object_grasped, in_place)
     reward = jnp.where((tcp_to_obj < 0.02) & (tcp_opened > 0), reward + 1.0 + 7.0 * in_place, reward)
@@ -1569,11 +1568,13 @@ def box_close(step: StepInputs) -> tuple[Array, dict[str, Array]]:
     """`SawyerBoxCloseEnvV3.compute_reward` (v2): reach the lid's handle from above with the
     gripper closing, put the lid on the box, all scaled by how upright the lid is."""
     obs, target = step.obs, step.target_pos
-    hand = obs[:3]
-    lid = obs[4:7] + jnp.array([0.0, 0.0, 0.02])
+    hand = obs.hand
+    lid = obs.obj + jnp.array([0.0, 0.0, 0.02])
     reward_grab = jnp.clip((jnp.clip(step.action[3], -1.0, 1.0) + 1.0) / 2.0, 0.0, 1.0)
     # The lid's xquat (w, x, y, z) against the upright (0.707, 0, 0, 0.707), linearly.
-    upright = jnp.maximum(1.0 - jnp.linalg.norm(obs[7:11] - jnp.array([0.707, 0.0, 0.0, 0.707])) / 0.2, 0.0)
+    upright = jnp.maximum(
+        1.0 - jnp.linalg.norm(obs.obj_quat - jnp.array([0.707, 0.0, 0.0, 0.707])) / 0.2, 0.0
+    )
     floor = funnel_floor(jnp.linalg.norm(hand[:2] - lid[:2]), 0.02, 0.04, 0.4)
     above_floor = above_floor_term(hand[2], floor, margin=floor / 2.0)
     in_place = tolerance(jnp.linalg.norm(hand - lid), bounds=(0.0, 0.02), margin=0.5, sigmoid="long_tail")
@@ -1586,7 +1587,7 @@ def box_close(step: StepInputs) -> tuple[Array, dict[str, Array]]:
     )
     lifted = 0.2 * (lid[2] > 0.04) + 0.8 * placed
     reward = 2.0 * hamacher_product(reward_grab, ready_to_lift) + 8.0 * lifted
-    success = jnp.linalg.norm(obs[4:7] - target) < 0.08
+    success = jnp.linalg.norm(obs.obj - target) < 0.08
     # The success override comes before the orientation scaling, so a tilted lid scores below 10.
     reward = jnp.where(success, 10.0, reward) * upright
     return info_terms(
@@ -1609,8 +1610,8 @@ def coffee_button(step: StepInputs) -> tuple[Array, dict[str, Array]]:
 def coffee_mug(step: StepInputs) -> tuple[Array, dict[str, Array]]:
     """coffee-pull's and coffee-push's (identical) v2 reward: cage the mug, slide it to the goal,
     x and y errors weighted twice."""
-    obj, target = step.obs[4:7], step.target_pos
-    tcp_opened = step.obs[3]
+    obj, target = step.obs.obj, step.target_pos
+    tcp_opened = step.obs.gripper
     scale = jnp.array([2.0, 2.0, 1.0])
     target_to_obj = jnp.linalg.norm((obj - target) * scale)
     in_place = tolerance(
@@ -1648,7 +1649,7 @@ def coffee_mug(step: StepInputs) -> tuple[Array, dict[str, Array]]:
 def lever_pull(step: StepInputs) -> tuple[Array, dict[str, Array]]:
     """`SawyerLeverPullEnvV3.compute_reward` (v2): get the arm's "shoulder" under the lever, lift
     the lever's end to the goal above its axis."""
-    gripper, lever, target = step.obs[:3], step.obs[4:7], step.target_pos
+    gripper, lever, target = step.obs.hand, step.obs.obj, step.target_pos
     lever_pos_init = step.constants["lever_pos_init"]
     # y de-emphasised; the offset puts the point below the fingers under the lever.
     scale = jnp.array([4.0, 1.0, 4.0])
@@ -1687,7 +1688,7 @@ def lever_pull(step: StepInputs) -> tuple[Array, dict[str, Array]]:
 def door_close(step: StepInputs) -> tuple[Array, dict[str, Array]]:
     """`SawyerDoorCloseEnvV3.compute_reward` (v2): bring the hand to the goal while the handle
     swings there."""
-    obj, target = step.obs[4:7], step.target_pos
+    obj, target = step.obs.obj, step.target_pos
     tcp_to_target = jnp.linalg.norm(step.frame.tcp_center - target)
     obj_to_target = jnp.linalg.norm(obj - target)
     in_place = tolerance(
@@ -1720,7 +1721,7 @@ _LOCK_SCALE = jnp.array([0.25, 1.0, 0.5])  # x counts least, z half, in the reac
 
 def door_lock(step: StepInputs) -> tuple[Array, dict[str, Array]]:
     """`SawyerDoorLockEnvV3.compute_reward` (v2): left pad to the lock, push it down to the goal z."""
-    obj = step.obs[4:7]
+    obj = step.obs.obj
     tcp_to_obj = jnp.linalg.norm((obj - step.frame.left_pad) * _LOCK_SCALE)
     # Reference quirk: init_left_pad is a live view of the left pad's xpos, so the "initial"
     # distance is the current one and the reach margin shrinks with the distance itself.
@@ -1728,7 +1729,7 @@ def door_lock(step: StepInputs) -> tuple[Array, dict[str, Array]]:
     obj_to_target = jnp.abs(step.target_pos[2] - obj[2])
     near_lock = tolerance(tcp_to_obj, bounds=(0.0, 0.01), margin=tcp_to_obj_init, sigmoid="long_tail")
     lock_pressed = tolerance(obj_to_target, bounds=(0.0, 0.005), margin=_LOCK_LENGTH, sigmoid="long_tail")
-    tcp_opened = jnp.maximum(step.obs[3], 0.0)
+    tcp_opened = jnp.maximum(step.obs.gripper, 0.0)
     reward = 2.0 * hamacher_product(tcp_opened, near_lock) + 8.0 * lock_pressed
     return info_terms(
         reward,
@@ -1743,7 +1744,7 @@ def door_lock(step: StepInputs) -> tuple[Array, dict[str, Array]]:
 def door_unlock(step: StepInputs) -> tuple[Array, dict[str, Array]]:
     """`SawyerDoorUnlockEnvV3.compute_reward` (v2): the gripper's "shoulder" (hand + offset) to the
     lock, push it sideways to the goal x."""
-    hand, lock = step.obs[:3], step.obs[4:7]
+    hand, lock = step.obs.hand, step.obs.obj
     shoulder_offset = jnp.array([0.0, 0.055, 0.07])
     shoulder_to_lock = jnp.linalg.norm((hand + shoulder_offset - lock) * _LOCK_SCALE)
     # Reference quirk: obj_init_pos is a live view of lock_link's xpos (the lock's hinge, which
@@ -1771,7 +1772,7 @@ def door_unlock(step: StepInputs) -> tuple[Array, dict[str, Array]]:
 def handle_pull(step: StepInputs) -> tuple[Array, dict[str, Array]]:
     """`SawyerHandlePullEnvV3.compute_reward` (v2): cage the handle's right end, lift it to the
     goal's z (handle-press reuses `handle_press`)."""
-    obj, target = step.obs[4:7], step.target_pos
+    obj, target = step.obs.obj, step.target_pos
     # obj_init_pos is rand_vec, the box origin, so the initial distance is nearly the goal's height.
     target_to_obj_init = jnp.abs(target[2] - step.constants["obj_init_pos"][2])
     # Reference quirk: the lift test compares the handle's y (not z) with the box's initial z.

@@ -39,9 +39,9 @@ from jax.sharding import Mesh, NamedSharding
 from jax.sharding import PartitionSpec as P
 
 from mwjax import env as env_module
+from mwjax.contracts import Kinematics
 from mwjax.env import Env, State
 from mwjax.physics import PhysicsConfig
-from mwjax.tasks.spec import Kinematics
 
 Array = jax.Array
 AXIS = "envs"

@@ -6,7 +6,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from mwjax import rewards_v1, rewards_v2
-from mwjax.tasks.spec import Frame, Placement, TaskSpec, set_object_xyz
+from mwjax.contracts import Frame, Placement
+from mwjax.tasks.spec import TaskSpec, set_object_xyz
 
 # Both tasks move the peg of their shared scene.
 _MOVED = ("peg",)

@@ -6,7 +6,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from mwjax import rewards_v1, rewards_v2
-from mwjax.tasks.spec import Frame, Placement, TaskSpec, quat_from_xmat, set_object_xyz
+from mwjax.contracts import Frame, Placement
+from mwjax.tasks.spec import TaskSpec, quat_from_xmat, set_object_xyz
 
 # Both balls start at init_config's height, whatever rand_vec's object z.
 _BALL_Z = 0.03

@@ -6,7 +6,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from mwjax import rewards_v1, rewards_v2
-from mwjax.tasks.spec import Frame, Placement, TaskSpec, set_object_xyz
+from mwjax.contracts import Frame, Placement
+from mwjax.tasks.spec import TaskSpec, set_object_xyz
 
 _LID_Z = 0.02  # init_config's obj_init_pos z
 _LIFT_THRESH = 0.12  # liftThresh: V1's target height above the handle's resting height

@@ -6,7 +6,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from mwjax import rewards_v1, rewards_v2
-from mwjax.tasks.spec import ConstantsFn, Frame, Placement, TaskSpec, quat_from_xmat
+from mwjax.contracts import Frame, Placement
+from mwjax.tasks.spec import ConstantsFn, TaskSpec, quat_from_xmat
 
 # All three tasks move the machine of the shared scene, so they list the same moved bodies.
 _MOVED = ("coffee_machine",)

@@ -11,8 +11,9 @@ from __future__ import annotations
 import jax.numpy as jnp
 
 from mwjax import rewards_v1, rewards_v2
+from mwjax.contracts import Frame, Placement
 from mwjax.tasks.articulated import HAND_INIT, place_fixture
-from mwjax.tasks.spec import Frame, ObjectsFn, PlaceFn, Placement, TaskSpec
+from mwjax.tasks.spec import ObjectsFn, PlaceFn, TaskSpec
 
 # The lever joint is unnamed in the scenes; the reference writes qpos[9] / qvel[9] directly.
 _LEVER_ADR = 9

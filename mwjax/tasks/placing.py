@@ -8,7 +8,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from mwjax import rewards_v1, rewards_v2
-from mwjax.tasks.spec import Frame, Placement, StepInputs, TaskSpec, quat_from_xmat, set_object_xyz
+from mwjax.contracts import Frame, Placement, StepInputs
+from mwjax.tasks.spec import TaskSpec, quat_from_xmat, set_object_xyz
 
 HAND_INIT = (0.0, 0.6, 0.2)
 
@@ -153,7 +154,7 @@ def _bin_constants(frame: Frame, placement: Placement, settled: Frame) -> dict[s
 
 def _latch_target_to_obj_init(step: StepInputs) -> dict[str, jnp.ndarray]:
     """V2's in-place margin is the cube-goal distance at the episode's first compute_reward."""
-    return {"target_to_obj_init": jnp.linalg.norm(step.obs[4:7] - step.target_pos)}
+    return {"target_to_obj_init": jnp.linalg.norm(step.obs.obj - step.target_pos)}
 
 
 BIN_PICKING = TaskSpec(

@@ -8,7 +8,8 @@ from collections.abc import Sequence
 import jax.numpy as jnp
 
 from mwjax import rewards_v1, rewards_v2
-from mwjax.tasks.spec import ConstantsFn, Frame, PlaceFn, Placement, TaskSpec, quat_from_xmat
+from mwjax.contracts import Frame, Placement
+from mwjax.tasks.spec import ConstantsFn, PlaceFn, TaskSpec, quat_from_xmat
 
 HAND_INIT = (0.0, 0.6, 0.2)
 # Every variant lists the goal net body of its scene, moved or not, so scene-mates agree.

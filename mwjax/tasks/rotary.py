@@ -5,8 +5,9 @@ from __future__ import annotations
 import jax.numpy as jnp
 
 from mwjax import rewards_v1, rewards_v2
+from mwjax.contracts import Frame, Placement
 from mwjax.tasks.articulated import place_fixture
-from mwjax.tasks.spec import Frame, ObjectsFn, Placement, RewardFn, TaskSpec, quat_from_xmat
+from mwjax.tasks.spec import ObjectsFn, RewardFn, TaskSpec, quat_from_xmat
 
 # ---- faucet-open, faucet-close -------------------------------------------------------------------
 

@@ -9,8 +9,9 @@ import mujoco
 import numpy as np
 
 from mwjax import rewards_v1, rewards_v2
+from mwjax.contracts import Frame, Placement
 from mwjax.models import load_scene
-from mwjax.tasks.spec import Frame, ObjectsFn, PlaceFn, Placement, TaskSpec, quat_from_xmat, set_object_xyz
+from mwjax.tasks.spec import ObjectsFn, PlaceFn, TaskSpec, quat_from_xmat, set_object_xyz
 
 # ---- stick-push, stick-pull: a stick (free joint) and a thermos on two slide joints --------------
 

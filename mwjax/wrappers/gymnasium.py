@@ -148,12 +148,12 @@ class MwjaxVectorEnv(gym.vector.VectorEnv):
             self.action_space.seed(seed)
         self._key, key = jax.random.split(self._key)
         self._state = self._reset(key)
-        return self._obs(self._state.obs), {}
+        return self.observation(self._state.obs), {}
 
     def sample_tasks(self) -> tuple[Array, dict]:
         """Every env moves on to its next goal variant and restarts (the reference's ML `sample_tasks`)."""
         self._state = self._sample_goals(self.state)
-        return self._obs(self._state.obs), {}
+        return self.observation(self._state.obs), {}
 
     def step(self, actions: Any) -> tuple[Array, Array, Array, Array, dict]:
         actions = jnp.asarray(actions)
@@ -175,7 +175,7 @@ class MwjaxVectorEnv(gym.vector.VectorEnv):
             final_info["_episode"] = done
             info = _masked(values, ~done)
             info.update(
-                final_obs=self._obs(state.info["final_obs"]),
+                final_obs=self.observation(state.info["final_obs"]),
                 _final_obs=done,
                 final_info=final_info,
                 _final_info=done,
@@ -183,13 +183,15 @@ class MwjaxVectorEnv(gym.vector.VectorEnv):
         else:
             info = _masked(values, jnp.ones_like(done))
             info.update(episode=_masked(episode, done), _episode=done)
-        return self._obs(state.obs), state.reward, state.terminated, state.truncated, info
+        return self.observation(state.obs), state.reward, state.terminated, state.truncated, info
 
     def render(self) -> tuple[np.ndarray, ...] | None:
         frames = self._frames(self._state)
         return None if frames is None else tuple(frames)
 
-    def _obs(self, obs: Array) -> Array:
+    def observation(self, obs: Array) -> Array:
+        """This env's observations of core observations `(num_envs, 39)` (e.g. `state.obs`): with
+        `use_one_hot`, each env's task one-hot appended."""
         return jnp.concatenate([obs, self._one_hot], axis=-1) if self.use_one_hot else obs
 
 

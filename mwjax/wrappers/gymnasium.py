@@ -20,7 +20,8 @@ import numpy as np
 from gymnasium.vector import AutoresetMode
 
 from mwjax import benchmarks, rendering
-from mwjax.env import MAX_EPISODE_STEPS, Env, State, make
+from mwjax.config import MAX_EPISODE_STEPS, EnvConfig
+from mwjax.env import Env, State, make
 from mwjax.sharding import ShardedEnv
 
 Array = jax.Array
@@ -311,15 +312,17 @@ class MwjaxEnv(_SingleEnv):
         seed_value = 0 if seed is None else seed
         goals = _sampled_goals(benchmarks.benchmark("MT1", env_name), "train", seed_value, num_goals)
         core = Env(
-            "MT1",
-            envs_per_task=1,
-            seed=seed_value,
-            task=env_name,
-            reward_version=reward_function_version,
-            max_episode_steps=MAX_EPISODE_STEPS if max_episode_steps is None else max_episode_steps,
-            terminate_on_success=terminate_on_success,
-            autoreset="disabled",
-            goal_variants=goals,
+            EnvConfig(
+                "MT1",
+                envs_per_task=1,
+                seed=seed_value,
+                task=env_name,
+                reward_version=reward_function_version,
+                max_episode_steps=MAX_EPISODE_STEPS if max_episode_steps is None else max_episode_steps,
+                terminate_on_success=terminate_on_success,
+                autoreset="disabled",
+                goal_variants=goals,
+            )
         )
         one_hot = np.eye(num_tasks, dtype=np.float32)[env_id] if use_one_hot else np.zeros(0, np.float32)
         self._setup(core, jax.random.key(seed_value), one_hot, **render)
@@ -341,13 +344,15 @@ class GoalEnv(_SingleEnv):
             seed = int(np.random.SeedSequence().generate_state(1)[0])
         rand_vec = benchmarks.sample_goal_variants([task], seed, n_goals=1)
         core = Env(
-            "MT1",
-            envs_per_task=1,
-            seed=seed,
-            task=task,
-            partially_observable=hidden,
-            autoreset="disabled",
-            goal_variants=rand_vec,
+            EnvConfig(
+                "MT1",
+                envs_per_task=1,
+                seed=seed,
+                task=task,
+                partially_observable=hidden,
+                autoreset="disabled",
+                goal_variants=rand_vec,
+            )
         )
         self.goal = rand_vec[task][0]
         self._setup(core, jax.random.key(seed), np.zeros(0, np.float32))

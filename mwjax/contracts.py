@@ -1,8 +1,8 @@
 """What the core, the tasks and the reward kernels exchange: read-only views of one env's physics
 and the values passed between them.
 
-Both `mwjax.tasks` (which names each task's reward kernels) and `mwjax.rewards_v1`/`rewards_v2`
-import this module, and it imports neither, so no import runs back up.
+Both `mwjax.tasks` (which names each task's reward kernels) and the kernels (`mwjax.rewards_v1`,
+`mwjax.rewards_v2`) import this module, and it imports neither, so no import runs back up.
 """
 
 from __future__ import annotations

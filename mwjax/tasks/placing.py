@@ -7,8 +7,9 @@ from collections.abc import Callable
 import jax.numpy as jnp
 import numpy as np
 
-from mwjax import rewards_v1, rewards_v2
 from mwjax.contracts import Frame, Placement, StepInputs
+from mwjax.rewards_v1 import placing as v1
+from mwjax.rewards_v2 import placing as v2
 from mwjax.tasks.spec import TaskSpec, quat_from_xmat, set_object_xyz
 
 HAND_INIT = (0.0, 0.6, 0.2)
@@ -74,8 +75,8 @@ PICK_OUT_OF_HOLE = TaskSpec(
     place=_place_pick_out_of_hole,
     constants=_pick_out_of_hole_constants,
     objects=_block_body,
-    reward_v2=rewards_v2.pick_out_of_hole,
-    reward_v1=rewards_v1.pick_out_of_hole,
+    reward_v2=v2.pick_out_of_hole,
+    reward_v1=v1.pick_out_of_hole,
     rand_vec_valid=_apart(0.15),
 )
 
@@ -124,8 +125,8 @@ SHELF_PLACE = TaskSpec(
     place=_place_shelf,
     constants=_shelf_constants,
     objects=_block_geom_quat,
-    reward_v2=rewards_v2.shelf_place,
-    reward_v1=rewards_v1.shelf_place,
+    reward_v2=v2.shelf_place,
+    reward_v1=v1.shelf_place,
     moved_bodies=("shelf",),
     rand_vec_valid=_apart(0.1),
 )
@@ -169,8 +170,8 @@ BIN_PICKING = TaskSpec(
     place=_place_bin,
     constants=_bin_constants,
     objects=_block_body,
-    reward_v2=rewards_v2.bin_picking,
-    reward_v1=rewards_v1.bin_picking,
+    reward_v2=v2.bin_picking,
+    reward_v1=v1.bin_picking,
     latch=_latch_target_to_obj_init,
 )
 

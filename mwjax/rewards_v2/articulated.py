@@ -14,6 +14,7 @@ from mwjax.rewards_v2.terms import (
     button_reach_press,
     button_terms,
     funnel_floor,
+    grasp_place_info,
     hamacher_product,
     info_terms,
     tolerance,
@@ -157,13 +158,8 @@ def _window(
         sigmoid=reach_sigmoid,
     )
     reward = 10.0 * hamacher_product(reach, in_place)
-    return info_terms(
-        reward,
-        success=target_to_obj <= TARGET_RADIUS,
-        near_object=tcp_to_obj <= 0.05,
-        grasp_reward=reach,
-        in_place_reward=in_place,
-        obj_to_target=target_to_obj,
+    return grasp_place_info(
+        reward, target_to_obj, tcp_to_obj, reach, in_place, success_radius=TARGET_RADIUS, near_radius=0.05
     )
 
 

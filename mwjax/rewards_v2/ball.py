@@ -6,9 +6,9 @@ import jax.numpy as jnp
 
 from mwjax.contracts import StepInputs
 from mwjax.rewards_v2.terms import (
+    grasp_place_info,
     gripper_caging,
     hamacher_product,
-    info_terms,
     pad_gripping_caging,
     within,
 )
@@ -41,13 +41,8 @@ def basketball(step: StepInputs) -> tuple[Array, dict[str, Array]]:
     reward = hamacher_product(object_grasped, in_place)
     reward = jnp.where(lifted, reward + 1.0 + 5.0 * in_place, reward)
     reward = jnp.where(target_to_obj < radius, 10.0, reward)
-    return info_terms(
-        reward,
-        success=target_to_obj <= radius,
-        near_object=tcp_to_obj <= 0.05,
-        grasp_reward=object_grasped,
-        in_place_reward=in_place,
-        obj_to_target=target_to_obj,
+    return grasp_place_info(
+        reward, target_to_obj, tcp_to_obj, object_grasped, in_place, success_radius=radius, near_radius=0.05
     )
 
 
@@ -73,11 +68,6 @@ def soccer(step: StepInputs) -> tuple[Array, dict[str, Array]]:
     reward = jnp.where(target_to_obj < radius, 10.0, reward)
     # Success and the reported distance are unscaled.
     obj_to_target = jnp.linalg.norm(obj - target)
-    return info_terms(
-        reward,
-        success=obj_to_target <= 0.07,
-        near_object=tcp_to_obj <= 0.03,
-        grasp_reward=object_grasped,
-        in_place_reward=in_place,
-        obj_to_target=obj_to_target,
+    return grasp_place_info(
+        reward, obj_to_target, tcp_to_obj, object_grasped, in_place, success_radius=0.07, near_radius=0.03
     )

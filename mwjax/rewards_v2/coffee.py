@@ -6,7 +6,7 @@ import jax.numpy as jnp
 
 from mwjax.contracts import StepInputs
 from mwjax.rewards_v2.articulated import button_press
-from mwjax.rewards_v2.terms import gripper_caging, hamacher_product, info_terms, within
+from mwjax.rewards_v2.terms import grasp_place_info, gripper_caging, hamacher_product, within
 
 Array = jnp.ndarray
 
@@ -42,11 +42,6 @@ def coffee_mug(step: StepInputs) -> tuple[Array, dict[str, Array]]:
     reward = jnp.where(target_to_obj < 0.05, 10.0, reward)
     # Success and obj_to_target use the unscaled distance.
     obj_to_target = jnp.linalg.norm(obj - target)
-    return info_terms(
-        reward,
-        success=obj_to_target <= 0.07,
-        near_object=tcp_to_obj <= 0.03,
-        grasp_reward=object_grasped,
-        in_place_reward=in_place,
-        obj_to_target=obj_to_target,
+    return grasp_place_info(
+        reward, obj_to_target, tcp_to_obj, object_grasped, in_place, success_radius=0.07, near_radius=0.03
     )

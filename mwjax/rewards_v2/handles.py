@@ -7,7 +7,14 @@ from __future__ import annotations
 import jax.numpy as jnp
 
 from mwjax.contracts import StepInputs
-from mwjax.rewards_v2.terms import TARGET_RADIUS, gripper_caging, hamacher_product, info_terms, within
+from mwjax.rewards_v2.terms import (
+    TARGET_RADIUS,
+    grasp_place_info,
+    gripper_caging,
+    hamacher_product,
+    info_terms,
+    within,
+)
 
 Array = jnp.ndarray
 
@@ -68,13 +75,14 @@ def _handle_pull(
     )
     reward = jnp.where(lifted, reward + 1.0 + 5.0 * in_place, reward)
     reward = jnp.where(target_to_obj < TARGET_RADIUS, 10.0, reward)
-    return info_terms(
+    return grasp_place_info(
         reward,
-        success=target_to_obj <= success_radius,
-        near_object=tcp_to_obj <= 0.05,
-        grasp_reward=object_grasped,
-        in_place_reward=in_place,
-        obj_to_target=target_to_obj,
+        target_to_obj,
+        tcp_to_obj,
+        object_grasped,
+        in_place,
+        success_radius=success_radius,
+        near_radius=0.05,
     )
 
 

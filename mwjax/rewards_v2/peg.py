@@ -6,9 +6,9 @@ import jax.numpy as jnp
 
 from mwjax.contracts import StepInputs
 from mwjax.rewards_v2.terms import (
+    grasp_place_info,
     gripper_caging,
     hamacher_product,
-    info_terms,
     rect_prism_tolerance,
     tolerance,
     within,
@@ -59,13 +59,8 @@ def peg_insert_side(step: StepInputs) -> tuple[Array, dict[str, Array]]:
     reward = hamacher_product(object_grasped, in_place)
     reward = jnp.where(lifted, reward + 1.0 + 5.0 * in_place, reward)
     reward = jnp.where(obj_to_target <= 0.07, 10.0, reward)
-    return info_terms(
-        reward,
-        success=obj_to_target <= 0.07,
-        near_object=tcp_to_obj <= 0.03,
-        grasp_reward=object_grasped,
-        in_place_reward=in_place,
-        obj_to_target=obj_to_target,
+    return grasp_place_info(
+        reward, obj_to_target, tcp_to_obj, object_grasped, in_place, success_radius=0.07, near_radius=0.03
     )
 
 
@@ -91,11 +86,6 @@ def peg_unplug_side(step: StepInputs) -> tuple[Array, dict[str, Array]]:
     pulling = (tcp_opened > 0.5) & (obj[0] - obj_init_pos[0] > 0.015) & (tcp_to_obj < 0.035)
     reward = jnp.where(pulling, 1.0 + 2.0 * object_grasped + 5.0 * in_place, 2.0 * object_grasped)
     reward = jnp.where(obj_to_target <= 0.05, 10.0, reward)
-    return info_terms(
-        reward,
-        success=obj_to_target <= 0.07,
-        near_object=tcp_to_obj <= 0.03,
-        grasp_reward=object_grasped,
-        in_place_reward=in_place,
-        obj_to_target=obj_to_target,
+    return grasp_place_info(
+        reward, obj_to_target, tcp_to_obj, object_grasped, in_place, success_radius=0.07, near_radius=0.03
     )

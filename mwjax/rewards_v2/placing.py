@@ -9,6 +9,7 @@ from mwjax.rewards_v2.terms import (
     TARGET_RADIUS,
     above_floor_term,
     funnel_floor,
+    grasp_place_info,
     gripper_caging,
     hamacher_product,
     info_terms,
@@ -47,13 +48,8 @@ def pick_out_of_hole(step: StepInputs) -> tuple[Array, dict[str, Array]]:
     reward = jnp.where(grasped, reward + 1.0 + 5.0 * hamacher_product(in_place, above_floor), reward)
     # Quirk: the override reads the base class's TARGET_RADIUS (0.05), not the class's 0.02.
     reward = jnp.where(obj_to_target < TARGET_RADIUS, 10.0, reward)
-    return info_terms(
-        reward,
-        success=obj_to_target <= 0.07,
-        near_object=tcp_to_obj <= 0.03,
-        grasp_reward=object_grasped,
-        in_place_reward=in_place,
-        obj_to_target=obj_to_target,
+    return grasp_place_info(
+        reward, obj_to_target, tcp_to_obj, object_grasped, in_place, success_radius=0.07, near_radius=0.03
     )
 
 
@@ -87,13 +83,8 @@ def shelf_place(step: StepInputs) -> tuple[Array, dict[str, Array]]:
     lifted = (tcp_to_obj < 0.025) & (tcp_opened > 0) & (obj[2] - 0.01 > obj_init_pos[2])
     reward = jnp.where(lifted, reward + 1.0 + 5.0 * in_place, reward)
     reward = jnp.where(obj_to_target < TARGET_RADIUS, 10.0, reward)
-    return info_terms(
-        reward,
-        success=obj_to_target <= 0.07,
-        near_object=tcp_to_obj <= 0.03,
-        grasp_reward=object_grasped,
-        in_place_reward=in_place,
-        obj_to_target=obj_to_target,
+    return grasp_place_info(
+        reward, obj_to_target, tcp_to_obj, object_grasped, in_place, success_radius=0.07, near_radius=0.03
     )
 
 

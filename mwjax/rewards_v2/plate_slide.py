@@ -7,7 +7,7 @@ from __future__ import annotations
 import jax.numpy as jnp
 
 from mwjax.contracts import StepInputs
-from mwjax.rewards_v2.terms import TARGET_RADIUS, hamacher_product, info_terms, within
+from mwjax.rewards_v2.terms import TARGET_RADIUS, grasp_place_info, hamacher_product, within
 
 Array = jnp.ndarray
 
@@ -31,13 +31,8 @@ def _plate_info(
 ) -> tuple[Array, dict[str, Array]]:
     reward = jnp.where(obj_to_target < TARGET_RADIUS, 10.0, reward)
     # Quirk: success is obj_to_target <= 0.07 while the reward's 10.0 needs < TARGET_RADIUS.
-    return info_terms(
-        reward,
-        success=obj_to_target <= 0.07,
-        near_object=tcp_to_obj <= 0.03,
-        grasp_reward=object_grasped,
-        in_place_reward=in_place,
-        obj_to_target=obj_to_target,
+    return grasp_place_info(
+        reward, obj_to_target, tcp_to_obj, object_grasped, in_place, success_radius=0.07, near_radius=0.03
     )
 
 

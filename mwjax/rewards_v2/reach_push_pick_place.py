@@ -9,6 +9,7 @@ import jax.numpy as jnp
 from mwjax.contracts import StepInputs
 from mwjax.rewards_v2.terms import (
     TARGET_RADIUS,
+    grasp_place_info,
     gripper_caging,
     hamacher_product,
     info_terms,
@@ -35,13 +36,8 @@ def pick_place(step: StepInputs) -> tuple[Array, dict[str, Array]]:
     lifted = (tcp_to_obj < 0.02) & (tcp_opened > 0) & (obj[2] - 0.01 > obj_init_pos[2])
     reward = jnp.where(lifted, reward + 1.0 + 5.0 * in_place, reward)
     reward = jnp.where(obj_to_target < TARGET_RADIUS, 10.0, reward)
-    return info_terms(
-        reward,
-        success=obj_to_target <= 0.07,
-        near_object=tcp_to_obj <= 0.03,
-        grasp_reward=object_grasped,
-        in_place_reward=in_place,
-        obj_to_target=obj_to_target,
+    return grasp_place_info(
+        reward, obj_to_target, tcp_to_obj, object_grasped, in_place, success_radius=0.07, near_radius=0.03
     )
 
 
@@ -117,13 +113,14 @@ def push(step: StepInputs) -> tuple[Array, dict[str, Array]]:
     near = (tcp_to_obj < 0.02) & (tcp_opened > 0)
     reward = jnp.where(near, reward + 1.0 + reward + 5.0 * in_place, reward)
     reward = jnp.where(target_to_obj < TARGET_RADIUS, 10.0, reward)
-    return info_terms(
+    return grasp_place_info(
         reward,
-        success=target_to_obj <= TARGET_RADIUS,
-        near_object=tcp_to_obj <= 0.03,
-        grasp_reward=object_grasped,
-        in_place_reward=in_place,
-        obj_to_target=target_to_obj,
+        target_to_obj,
+        tcp_to_obj,
+        object_grasped,
+        in_place,
+        success_radius=TARGET_RADIUS,
+        near_radius=0.03,
     )
 
 
@@ -201,13 +198,8 @@ def push_back(step: StepInputs) -> tuple[Array, dict[str, Array]]:
     pushing = pushing & (target_to_obj_init - target_to_obj > 0.01)
     reward = jnp.where(pushing, reward + 1.0 + 5.0 * in_place, reward)
     reward = jnp.where(target_to_obj < TARGET_RADIUS, 10.0, reward)
-    return info_terms(
-        reward,
-        success=target_to_obj <= 0.07,
-        near_object=tcp_to_obj <= 0.03,
-        grasp_reward=object_grasped,
-        in_place_reward=in_place,
-        obj_to_target=target_to_obj,
+    return grasp_place_info(
+        reward, target_to_obj, tcp_to_obj, object_grasped, in_place, success_radius=0.07, near_radius=0.03
     )
 
 
@@ -220,13 +212,8 @@ def _sweep_reward(
     object_grasped = pad_gripping_caging(step, obj, 0.02, grip_success_margin, x_z_success_margin)
     reward = 2.0 * object_grasped + 6.0 * hamacher_product(object_grasped, in_place)
     reward = jnp.where(obj_to_target < TARGET_RADIUS, 10.0, reward)
-    return info_terms(
-        reward,
-        success=obj_to_target <= 0.05,
-        near_object=tcp_to_obj <= 0.03,
-        grasp_reward=object_grasped,
-        in_place_reward=in_place,
-        obj_to_target=obj_to_target,
+    return grasp_place_info(
+        reward, obj_to_target, tcp_to_obj, object_grasped, in_place, success_radius=0.05, near_radius=0.03
     )
 
 
@@ -246,11 +233,6 @@ def hand_insert(step: StepInputs) -> tuple[Array, dict[str, Array]]:
     reward = hamacher_product(object_grasped, in_place)
     reward = jnp.where((tcp_to_obj < 0.02) & (tcp_opened > 0), reward + 1.0 + 7.0 * in_place, reward)
     reward = jnp.where(target_to_obj < TARGET_RADIUS, 10.0, reward)
-    return info_terms(
-        reward,
-        success=target_to_obj <= 0.05,
-        near_object=tcp_to_obj <= 0.03,
-        grasp_reward=object_grasped,
-        in_place_reward=in_place,
-        obj_to_target=target_to_obj,
+    return grasp_place_info(
+        reward, target_to_obj, tcp_to_obj, object_grasped, in_place, success_radius=0.05, near_radius=0.03
     )

@@ -5,7 +5,7 @@ from __future__ import annotations
 import jax.numpy as jnp
 
 from mwjax.contracts import StepInputs
-from mwjax.rewards_v2.terms import hamacher_product, info_terms, tolerance, within
+from mwjax.rewards_v2.terms import grasp_place_info, hamacher_product, info_terms, tolerance, within
 
 Array = jnp.ndarray
 
@@ -77,13 +77,8 @@ def dial_turn(step: StepInputs) -> tuple[Array, dict[str, Array]]:
     gripper_closed = jnp.minimum(jnp.maximum(0.0, step.action[-1]), 1.0)
     reach = hamacher_product(reach, gripper_closed)
     reward = 10.0 * hamacher_product(reach, in_place)
-    return info_terms(
-        reward,
-        success=target_to_obj <= radius,
-        near_object=tcp_to_obj <= 0.01,
-        grasp_reward=reach,
-        in_place_reward=in_place,
-        obj_to_target=target_to_obj,
+    return grasp_place_info(
+        reward, target_to_obj, tcp_to_obj, reach, in_place, success_radius=radius, near_radius=0.01
     )
 
 

@@ -1,7 +1,7 @@
 """The shared vocabulary of the V2 rewards, written once: dm_control's `tolerance` (and `within`,
 its most common use), the hamacher product, the gripper-caging terms, the funnel floor, and
-`info_terms`, the info every kernel returns. Terms used by kernels of more than one family
-live here; the rest stay with their family.
+`info_terms`, the info every kernel returns (`grasp_place_info` is its grasp-and-place form).
+Terms used by kernels of more than one family live here; the rest stay with their family.
 """
 
 from __future__ import annotations
@@ -146,6 +146,27 @@ def info_terms(
         "unscaled_reward": reward,
     }
     return reward, {k: jnp.asarray(v, jnp.float32) for k, v in info.items()}
+
+
+def grasp_place_info(
+    reward: Array,
+    obj_to_target: Array,
+    tcp_to_obj: Array,
+    grasped: Array,
+    in_place: Array,
+    success_radius: float,
+    near_radius: float,
+) -> tuple[Array, dict[str, Array]]:
+    """`info_terms` of a grasp-and-place kernel: success once the object is within
+    `success_radius` of the target, near once the tcp is within `near_radius` of the object."""
+    return info_terms(
+        reward,
+        success=obj_to_target <= success_radius,
+        near_object=tcp_to_obj <= near_radius,
+        grasp_reward=grasped,
+        in_place_reward=in_place,
+        obj_to_target=obj_to_target,
+    )
 
 
 def funnel_floor(radius: Array, threshold: float, scale: float, height: float) -> Array:

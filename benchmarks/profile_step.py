@@ -59,7 +59,7 @@ def main() -> None:
     )
 
     def action_and_physics(state: mwjax.State, action: jax.Array) -> mwjax.State:
-        datas = plain.physics.step(plain._apply_action(state.physics, action))
+        datas = plain.physics.step(plain.apply_action(state.physics, action))
         return dataclasses.replace(state, physics=datas)
 
     def physics_only(state: mwjax.State, action: jax.Array) -> mwjax.State:

@@ -46,6 +46,7 @@ from jax.sharding import PartitionSpec as P
 
 import mwjax
 from mwjax.evaluation import evaluator
+from mwjax.observation import OBS_SIZE
 from mwjax.sharding import AXIS
 
 RESULTS = Path(__file__).parents[1] / "benchmarks" / "results" / "train"
@@ -224,7 +225,7 @@ class Trainer:
         local_env = self.env if self.devices is None else self.env.local
         self.rows_per_task = local_env.envs_per_task
         self.n_tasks = len(self.env.task_list)
-        self.obs_size = mwjax.env.OBS_SIZE + self.n_tasks
+        self.obs_size = OBS_SIZE + self.n_tasks
         self.one_hot = jnp.asarray(local_env.task_one_hot())
         per_task = self.rows_per_task * config.unroll
         if per_task % config.minibatches:
@@ -294,7 +295,7 @@ class Trainer:
 
     def _init_rest_of_carry(self, params: Params, env_key: Array, cut_key: Array, key: Array) -> Carry:
         cfg = self.config
-        norm = Normalizers(RunningStats.zeros((mwjax.env.OBS_SIZE,)), RunningStats.zeros((self.n_tasks,)))
+        norm = Normalizers(RunningStats.zeros((OBS_SIZE,)), RunningStats.zeros((self.n_tasks,)))
         env_state = self.env.reset(env_key)
         zeros = jnp.zeros(self.env.num_envs)
         first_cut = jnp.full(self.env.num_envs, -1, jnp.int32)
@@ -311,7 +312,7 @@ class Trainer:
     @staticmethod
     def _normalize(norm: Normalizers, obs: Array) -> Array:
         """Normalizes the env observation; the one-hot task id after it passes through as is."""
-        env_obs, task = obs[..., : mwjax.env.OBS_SIZE], obs[..., mwjax.env.OBS_SIZE :]
+        env_obs, task = obs[..., :OBS_SIZE], obs[..., OBS_SIZE:]
         env_obs = jnp.clip((env_obs - norm.obs.mean) / jnp.sqrt(norm.obs.var + 1e-8), -10.0, 10.0)
         return jnp.concatenate([env_obs, task], axis=-1)
 
@@ -467,7 +468,7 @@ class Trainer:
         advantages = per_task.reshape(advantages.shape)
         # The loss sees observations as the rollout's policy saw them; the statistics of this
         # rollout then join the running ones, for the next rollouts.
-        env_obs = batch.obs[..., : mwjax.env.OBS_SIZE]
+        env_obs = batch.obs[..., :OBS_SIZE]
         norm = carry.norm._replace(obs=carry.norm.obs.merge(env_obs, (0, 1), self.axis))
         batch = batch._replace(obs=self._normalize(carry.norm, batch.obs))
 

@@ -15,6 +15,7 @@ from typing import TYPE_CHECKING, Any
 from mwjax.wrappers.registration import register_envs
 
 if TYPE_CHECKING:
+    from mwjax.config import EnvConfig
     from mwjax.env import Env, State, make
     from mwjax.physics import PhysicsConfig
 
@@ -26,10 +27,16 @@ if os.environ.get("MWJAX_DETERMINISTIC") == "1":
 
 register_envs()
 
-__all__ = ["Env", "PhysicsConfig", "State", "make"]
+__all__ = ["Env", "EnvConfig", "PhysicsConfig", "State", "make"]
 __version__ = "0.1.0"
 
-_LAZY = {"Env": "mwjax.env", "State": "mwjax.env", "make": "mwjax.env", "PhysicsConfig": "mwjax.physics"}
+_LAZY = {
+    "Env": "mwjax.env",
+    "EnvConfig": "mwjax.config",
+    "State": "mwjax.env",
+    "make": "mwjax.env",
+    "PhysicsConfig": "mwjax.physics",
+}
 
 
 def __getattr__(name: str) -> Any:

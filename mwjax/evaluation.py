@@ -178,7 +178,7 @@ def metalearning_evaluation(
     eval_env = core.env.replace(autoreset="same_step", terminate_on_success=True)
     adapt_step, eval_step = jax.jit(adapt_env.step), jax.jit(eval_env.step)
     sample, restart = jax.jit(adapt_env.sample_goals), jax.jit(adapt_env.restart)
-    observe = core._obs
+    observe = core.observation
     tasks = list(dict.fromkeys(adapt_env.task_names))
     task_index = np.array([tasks.index(t) for t in adapt_env.task_names])
     # Episodes that end at the same step count in the unsharded env's row order.

@@ -23,7 +23,7 @@ import os
 import time
 from collections.abc import Sequence
 
-from mwjax import benchmarks
+from mwjax import benchmarks, placement
 from mwjax.physics import PhysicsConfig
 from mwjax.tasks import TASKS, get_task
 
@@ -36,11 +36,8 @@ def scenes(tasks: str | Sequence[str]) -> list[Scene]:
     bench = benchmarks.benchmark(tasks)
     out: dict[Scene, None] = {}
     for split in ("train", "test") if bench.test else ("train",):
-        moved: dict[str, set[str]] = {}
-        for name in bench.tasks(split):
-            spec = get_task(name)
-            moved.setdefault(spec.scene, set()).update(spec.moved_bodies)
-        out.update({(scene, tuple(sorted(bodies))): None for scene, bodies in moved.items()})
+        groups = placement.scene_groups([get_task(name) for name in bench.tasks(split)])
+        out.update({(members[0].scene, placement.mocap_bodies(members)): None for members in groups})
     return list(out)
 
 

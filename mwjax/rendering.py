@@ -671,7 +671,7 @@ def _free_lookat(env: Env, group: SceneGroup, row: int) -> np.ndarray:
     Gymnasium computes it when the reference first renders. Taken here from the task's settled
     reset state (hand at its start, objects where the recorded reset left them)."""
     task = env.task_names[row]
-    geom_xpos = np.asarray(env._task(task).settled.kin.geom_xpos)
+    geom_xpos = np.asarray(env.settled_kinematics(task).geom_xpos)
     return np.median(geom_xpos, axis=0)
 
 

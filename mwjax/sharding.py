@@ -38,10 +38,12 @@ import numpy as np
 from jax.sharding import Mesh, NamedSharding
 from jax.sharding import PartitionSpec as P
 
-from mwjax import env as env_module
+from mwjax.config import EnvConfig
+from mwjax.contracts import Kinematics
 from mwjax.env import Env, State
+from mwjax.goals import goal_pools
 from mwjax.physics import PhysicsConfig
-from mwjax.tasks.spec import Kinematics
+from mwjax.sawyer import check_action
 
 Array = jax.Array
 AXIS = "envs"
@@ -55,21 +57,20 @@ class ShardedEnv:
     """A batched task set whose rows are split over `devices` (see the module docstring). It has
     `Env`'s functional API (`reset`, `step`, ...), each call one SPMD program over the devices."""
 
-    def __init__(self, devices: Sequence[jax.Device], tasks: Any, envs_per_task: int, **kwargs: Any) -> None:
+    def __init__(self, devices: Sequence[jax.Device], config: EnvConfig) -> None:
         devices = tuple(devices)
         if not devices:
             raise ValueError("devices must name at least one device")
         if len(set(devices)) != len(devices):
             raise ValueError(f"devices must be distinct, got {devices}")
         n = len(devices)
-        if not isinstance(envs_per_task, int) or envs_per_task < 1:
-            raise ValueError(f"envs_per_task must be a positive int, got {envs_per_task!r}")
+        envs_per_task = config.envs_per_task
         if envs_per_task % n:
             raise ValueError(
                 f"envs_per_task={envs_per_task} is not a multiple of the {n} devices: every device "
                 "steps an equal share of every task"
             )
-        graph_mode = (kwargs.get("physics") or PhysicsConfig()).graph_mode
+        graph_mode = (config.physics or PhysicsConfig()).graph_mode
         if n > 1 and graph_mode in _ONE_GRAPH_PER_CALL:
             raise ValueError(
                 f"graph_mode={graph_mode!r} keeps one CUDA graph per traced Warp call, which every "
@@ -78,8 +79,8 @@ class ShardedEnv:
         self.devices = devices
         self.mesh = Mesh(np.array(devices), (AXIS,))
         self.sharding = NamedSharding(self.mesh, P(AXIS))
-        self.local = local = Env(tasks, envs_per_task=envs_per_task // n, **kwargs)
-        self.config: dict[str, Any] = {**local.config, "envs_per_task": envs_per_task, "devices": devices}
+        self.config = config
+        self.local = local = Env(dataclasses.replace(config, envs_per_task=envs_per_task // n))
         for name in (
             "benchmark",
             "split",
@@ -114,7 +115,7 @@ class ShardedEnv:
         # What differs between devices: each row's goal pool (ML sets give env e of a task its own
         # share of the goal variants) and its place in the whole batch (for the reset keys).
         n_variants = next(iter(local.goal_variants.values())).shape[0]
-        pools, sizes = env_module._goal_pools(local.goal_sampling, envs_per_task, n_variants, n_tasks)
+        pools, sizes = goal_pools(local.goal_sampling, envs_per_task, n_variants, n_tasks)
         per_row = (np.asarray(pools)[self.row_order], np.asarray(sizes)[self.row_order], self.row_order)
         self._per_row_host = tuple(x.reshape(n, -1, *x.shape[1:]) for x in per_row)  # by device
         self._per_row = jax.device_put(per_row, self.sharding)
@@ -131,7 +132,7 @@ class ShardedEnv:
         if variants.shape != (self.num_envs,):
             raise ValueError(f"variants must have shape ({self.num_envs},), got {variants.shape}")
         if not isinstance(variants, jax.core.Tracer):
-            n = self.local._variants.shape[1]
+            n = self.local.goals.count
             if not np.all((np.asarray(variants) >= 0) & (np.asarray(variants) < n)):
                 raise ValueError(f"variants must lie in [0, {n})")
         key = jax.random.key(0) if key is None else key
@@ -140,7 +141,7 @@ class ShardedEnv:
 
     def reset_to(self, rand_vecs: Array, key: Array | None = None) -> State:
         rand_vecs = jnp.asarray(rand_vecs, jnp.float32)
-        width = self.local._variants.shape[2]
+        width = self.local.goals.width
         if rand_vecs.shape != (self.num_envs, width):
             raise ValueError(f"rand_vecs must have shape {(self.num_envs, width)}, got {rand_vecs.shape}")
         key = jax.random.key(0) if key is None else key
@@ -154,7 +155,7 @@ class ShardedEnv:
         return self._map("restart", lambda env, s, m: env.restart(s, m))(state, mask)
 
     def step(self, state: State, action: Array) -> State:
-        action = Env._check_action(self, action)  # type: ignore[arg-type]  # reads num_envs only
+        action = check_action(action, self.num_envs)
         return self._map("step", lambda env, s, a: env.step(s, a))(state, action)
 
     def observe(self, state: State, action: Array) -> State:
@@ -171,12 +172,10 @@ class ShardedEnv:
         return self._map("with_physics_state", lambda env, s, p: env.with_physics_state(s, p))(state, physics)
 
     def replace(self, **changes: Any) -> Env | ShardedEnv:
-        """The same env with some constructor arguments changed (`devices=None`: unsharded)."""
-        config = {**self.config, **changes}
-        devices = config.pop("devices")
-        if devices is None:
-            return Env(**config)
-        return ShardedEnv(devices, **config)
+        """The same env with some config fields changed (`devices=None`: unsharded)."""
+        devices = changes.pop("devices", self.devices)
+        config = dataclasses.replace(self.config, **changes)
+        return Env(config) if devices is None else ShardedEnv(devices, config)
 
     def observation_bounds(self) -> tuple[np.ndarray, np.ndarray]:
         return self.local.observation_bounds()
@@ -210,7 +209,7 @@ class ShardedEnv:
     def _device_env(self, pools: Array, sizes: Array, rows: Array) -> Env:
         """The local env with one device's goal pools and its rows' reset keys."""
         env = copy.copy(self.local)
-        env._goal_pools, env._goal_pool_sizes = pools, sizes
+        env.goals = dataclasses.replace(env.goals, pools=pools, pool_sizes=sizes)
         batch = self.num_envs
         env._row_keys = lambda key: jax.random.split(key, batch)[rows]  # type: ignore[method-assign]
         return env

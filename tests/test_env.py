@@ -76,7 +76,7 @@ def test_frame_stacking_and_goal(env, episode):
 
 
 def goal_bounds(env):
-    return np.asarray(env._goal_low), np.asarray(env._goal_high)
+    return np.asarray(env.sawyer.goal_low), np.asarray(env.sawyer.goal_high)
 
 
 def test_truncation_and_autoreset(env, episode):
@@ -92,7 +92,7 @@ def test_truncation_and_autoreset(env, episode):
 
 
 def test_default_horizon_is_reference():
-    assert mwjax.env.MAX_EPISODE_STEPS == 500
+    assert mwjax.config.MAX_EPISODE_STEPS == 500
 
 
 def test_same_seed_same_rollout(env, compiled, episode):
@@ -115,7 +115,7 @@ def test_carried_state_steps_as_whole_data(env, episode):
         datas = tuple(physics.data(g, s) for g, s in enumerate(state.physics))
         trail = []
         for action in actions:
-            datas = list(env._apply_action(datas, action))
+            datas = list(env.apply_action(datas, action))
             for g, step in enumerate(steps):
                 for _ in range(physics.config.substeps):
                     datas[g] = step(datas[g])
@@ -127,7 +127,7 @@ def test_carried_state_steps_as_whole_data(env, episode):
     def carried(state, actions):
         states, trail = state.physics, []
         for action in actions:
-            states = physics.step(env._apply_action(states, action))
+            states = physics.step(env.apply_action(states, action))
             trail.append(states)
         return trail
 

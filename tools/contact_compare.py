@@ -82,7 +82,7 @@ def main() -> None:
     group = env.physics.groups[0]
     model = group.model
     substep = jax.jit(jax.vmap(functools.partial(mjx.step, group.device_model)))
-    warp = jax.jit(lambda s, a: env.physics.data(0, env._apply_action(s, a)[0]))(state.physics, action)
+    warp = jax.jit(lambda s, a: env.physics.data(0, env.apply_action(s, a)[0]))(state.physics, action)
     c = mujoco.MjData(model)
     free = np.flatnonzero(model.jnt_type == mujoco.mjtJoint.mjJNT_FREE)
     dofs = np.concatenate([np.arange(model.jnt_dofadr[j], model.jnt_dofadr[j] + 6) for j in free])

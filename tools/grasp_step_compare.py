@@ -53,7 +53,7 @@ def main() -> None:
 
     for label, collider in (("mjc_BoxBox port", "box_box"), ("convex path", "convex")):
         variant = env.replace(physics=PhysicsConfig(box_box_collider=collider))
-        moved = jax.jit(lambda d, act, e=variant: e.physics.step(e._apply_action(d, act)))(
+        moved = jax.jit(lambda d, act, e=variant: e.physics.step(e.apply_action(d, act)))(
             state.physics, action
         )
         device = variant.physics.groups[0].device_model

@@ -14,6 +14,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from mwjax.observation import OBS_SIZE
 from mwjax.policies import (  # noqa: F401  (each family module registers its experts)
     articulated,
     assembly,
@@ -51,7 +52,7 @@ def expert_policy(env: Any) -> Callable[[Any, Array, Array], Array]:
 
     def policy(params: Any, obs: Array, key: Array) -> Array:
         del params, key
-        obs = jnp.asarray(obs)[:, :39]
+        obs = jnp.asarray(obs)[:, :OBS_SIZE]
         actions = jnp.concatenate([fn(obs[rows]) for rows, fn in parts])
         return actions if in_order else actions[order]
 

@@ -5,14 +5,15 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
-from mwjax.policies.common import action, first_true, move, parse, register, xy_dist
+from mwjax.observation import Observation
+from mwjax.policies.common import action, first_true, move, register, xy_dist
 
 Array = jax.Array
 
 
 @register("door-open-v3")
 def door_open(obs: Array) -> Array:
-    o = parse(obs)
+    o = Observation(obs)
     # The reference shifts the handle in place (`pos_door[0] -= 0.05`); nothing later reads it.
     handle = o.obj - jnp.array([0.05, 0.0, 0.0])
     front_edge = handle + jnp.array([0.06, 0.02, 0.0])
@@ -28,7 +29,7 @@ def door_open(obs: Array) -> Array:
 
 @register("door-close-v3")
 def door_close(obs: Array) -> Array:
-    o = parse(obs)
+    o = Observation(obs)
     handle = o.obj + jnp.array([0.05, 0.12, 0.1])
     beside = o.hand[0] > handle[0]  # still on the hinge side of the handle
     target = first_true(
@@ -44,7 +45,7 @@ def door_close(obs: Array) -> Array:
 
 @register("drawer-open-v3")
 def drawer_open(obs: Array) -> Array:
-    o = parse(obs)
+    o = Observation(obs)
     handle = o.obj + jnp.array([0.0, 0.0, -0.02])
     # The gain changes part-way: the final pull behind the handle uses a stiffer one.
     delta = first_true(
@@ -59,7 +60,7 @@ def drawer_open(obs: Array) -> Array:
 
 @register("drawer-close-v3")
 def drawer_close(obs: Array) -> Array:
-    o = parse(obs)
+    o = Observation(obs)
     handle = o.obj + jnp.array([0.0, 0.0, -0.02])
     front = handle + jnp.array([0.0, -0.075, 0.0])
     behind = o.hand[1] > handle[1]  # beyond the handle: climb over it back to its front
@@ -86,7 +87,7 @@ def _lock_approach(hand: Array, approach: Array, clearance_z: float, rise: bool)
 
 @register("door-lock-v3")
 def door_lock(obs: Array) -> Array:
-    o = parse(obs)
+    o = Observation(obs)
     lock = o.obj + jnp.array([-0.02, -0.02, 0.0])
     target = first_true(
         [
@@ -103,7 +104,7 @@ def door_lock(obs: Array) -> Array:
 
 @register("door-unlock-v3")
 def door_unlock(obs: Array) -> Array:
-    o = parse(obs)
+    o = Observation(obs)
     lock = o.obj + jnp.array([-0.04, -0.02, -0.03])
     target = jnp.where(
         xy_dist(o.hand, lock) > 0.02,
@@ -115,7 +116,7 @@ def door_unlock(obs: Array) -> Array:
 
 def _press_from_above(obs: Array, offset: tuple[float, float, float], grab: float) -> Array:
     """Hover 0.1 above the button (shifted by `offset`) until within 0.04 in xy, then press down."""
-    o = parse(obs)
+    o = Observation(obs)
     button = o.obj + jnp.array(offset)
     target = jnp.where(xy_dist(o.hand, button) > 0.04, button + jnp.array([0.0, 0.0, 0.1]), button)
     return action(move(o.hand, target, p=25.0), grab)
@@ -133,7 +134,7 @@ def button_press_topdown_wall(obs: Array) -> Array:
 
 @register("button-press-v3")
 def button_press(obs: Array) -> Array:
-    o = parse(obs)
+    o = Observation(obs)
     button = o.obj + jnp.array([0.0, 0.0, -0.07])
     xz = jnp.array([0, 2])
     # np.isclose(hand, button, atol=0.02) on x and z, with its default rtol=1e-5 relative to the button.
@@ -146,7 +147,7 @@ def button_press(obs: Array) -> Array:
 
 @register("button-press-wall-v3")
 def button_press_wall(obs: Array) -> Array:
-    o = parse(obs)
+    o = Observation(obs)
     button = o.obj + jnp.array([0.0, 0.0, 0.04])
     off_x = jnp.abs(o.hand[0] - button[0]) > 0.02
     far_y = button[1] - o.hand[1] > 0.09
@@ -166,7 +167,7 @@ def button_press_wall(obs: Array) -> Array:
 
 def _slide_window(obs: Array, side: float, hover: float) -> Array:
     """Hover over the handle on its `-side` x edge, drop to it, then slide it 0.1 towards `side`."""
-    o = parse(obs)
+    o = Observation(obs)
     handle = o.obj + jnp.array([-0.03 * side, -0.03, -0.08])
     target = first_true(
         [

@@ -5,14 +5,15 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
-from mwjax.policies.common import action, first_true, move, parse, register, xy_dist
+from mwjax.observation import Observation
+from mwjax.policies.common import action, first_true, move, register, xy_dist
 
 Array = jax.Array
 
 
 @register("assembly-v3")
 def assembly(obs: Array) -> Array:
-    o = parse(obs)
+    o = Observation(obs)
     wrench = o.obj + jnp.array([-0.02, 0.0, 0.0])  # the wrench's handle
     peg = o.goal + jnp.array([0.12, 0.0, 0.14])  # where the hand holds the wrench's ring over the peg
     target = first_true(
@@ -31,7 +32,7 @@ def assembly(obs: Array) -> Array:
 
 @register("disassemble-v3")
 def disassemble(obs: Array) -> Array:
-    o = parse(obs)
+    o = Observation(obs)
     wrench = o.obj + jnp.array([-0.02, 0.0, 0.01])
     target = first_true(
         [

@@ -5,14 +5,15 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
-from mwjax.policies.common import action, first_true, move, parse, register, xy_dist
+from mwjax.observation import Observation
+from mwjax.policies.common import action, first_true, move, register, xy_dist
 
 Array = jax.Array
 
 
 @register("basketball-v3")
 def basketball(obs: Array) -> Array:
-    o = parse(obs)
+    o = Observation(obs)
     ball = o.obj + jnp.array([0.0, 0.0, 0.01])
     # The hoop's x comes from the goal; its y varies in [0.85, 0.9] (the reference takes the middle)
     # and its height is fixed.
@@ -32,7 +33,7 @@ def basketball(obs: Array) -> Array:
 
 @register("soccer-v3")
 def soccer(obs: Array) -> Array:
-    o = parse(obs)
+    o = Observation(obs)
     ball = o.obj + jnp.array([0.0, 0.0, 0.03])
     offset = 0.03
     # Push from the side facing away from the goal: from -y, or from -x / +x when the ball is

@@ -5,14 +5,15 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
-from mwjax.policies.common import action, first_true, move, near, parse, register, xy_dist
+from mwjax.observation import Observation
+from mwjax.policies.common import action, first_true, move, near, register, xy_dist
 
 Array = jax.Array
 
 
 @register("box-close-v3")
 def box_close(obs: Array) -> Array:
-    o = parse(obs)
+    o = Observation(obs)
     lid = o.obj + jnp.array([0.0, 0.0, 0.02])  # the lid's handle
     box = o.goal.at[2].set(0.15)  # above the box; the goal's height is not used
     target = first_true(

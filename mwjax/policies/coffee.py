@@ -5,14 +5,15 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
-from mwjax.policies.common import action, first_true, move, parse, register, xy_dist
+from mwjax.observation import Observation
+from mwjax.policies.common import action, first_true, move, register, xy_dist
 
 Array = jax.Array
 
 
 @register("coffee-button-v3")
 def coffee_button(obs: Array) -> Array:
-    o = parse(obs)
+    o = Observation(obs)
     button = o.obj + jnp.array([0.0, 0.0, -0.07])
     xz_error = jnp.linalg.norm(o.hand[jnp.array([0, 2])] - button[jnp.array([0, 2])])
     target = jnp.where(
@@ -27,7 +28,7 @@ def _carry_mug(obs: Array, grasp_dx: float, approach_height: float, destination:
     """Hover over the mug, descend to it, then carry it to `destination` (coffee pull and push).
 
     The hand aims `grasp_dx` along x from the mug; the grip test always uses +0.01."""
-    o = parse(obs)
+    o = Observation(obs)
     grasp = o.obj + jnp.array([grasp_dx, 0.0, 0.05])
     target = first_true(
         [
@@ -43,11 +44,11 @@ def _carry_mug(obs: Array, grasp_dx: float, approach_height: float, destination:
 
 @register("coffee-pull-v3")
 def coffee_pull(obs: Array) -> Array:
-    goal = parse(obs).goal
+    goal = Observation(obs).goal
     return _carry_mug(obs, grasp_dx=-0.005, approach_height=0.15, destination=goal, grip=0.7)
 
 
 @register("coffee-push-v3")
 def coffee_push(obs: Array) -> Array:
-    goal = parse(obs).goal
+    goal = Observation(obs).goal
     return _carry_mug(obs, grasp_dx=0.01, approach_height=0.2, destination=goal.at[2].set(0.1), grip=0.5)

@@ -1,4 +1,5 @@
-"""The experts' shared vocabulary: observation fields, `move`, ordered cases, the action.
+"""The experts' shared vocabulary: `move`, ordered cases, the action (observation fields are
+`mwjax.observation.Observation`'s).
 
 The reference's experts are stateless functions of one observation: a chain of `if`s picks a
 target position for the hand and a grip effort. Here each expert is a pure function of one
@@ -8,7 +9,6 @@ target position for the hand and a grip effort. Here each expert is a pure funct
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
@@ -29,20 +29,6 @@ def register(task: str) -> Callable[[Expert], Expert]:
         return fn
 
     return add
-
-
-class Obs(NamedTuple):
-    hand: Array  # (3,)
-    gripper: Array  # () the gripper opening
-    obj: Array  # (3,) first object position
-    obj_quat: Array  # (4,)
-    obj2: Array  # (3,) second object position (zeros where a task has one object)
-    obj2_quat: Array  # (4,)
-    goal: Array  # (3,) zeros when the goal is hidden
-
-
-def parse(obs: Array) -> Obs:
-    return Obs(obs[0:3], obs[3], obs[4:7], obs[7:11], obs[11:14], obs[14:18], obs[36:39])
 
 
 def move(from_xyz: Array, to_xyz: Array, p: float) -> Array:

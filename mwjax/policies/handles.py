@@ -5,14 +5,15 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
-from mwjax.policies.common import action, first_true, move, parse, register, xy_dist
+from mwjax.observation import Observation
+from mwjax.policies.common import action, first_true, move, register, xy_dist
 
 Array = jax.Array
 
 
 def _press(obs: Array, handle_dy: float, grab: float) -> Array:
     """Hover over the handle (shifted `handle_dy` along y), then push it down hard."""
-    o = parse(obs)
+    o = Observation(obs)
     handle = o.obj + jnp.array([0.0, handle_dy, 0.0])
     target = jnp.where(
         xy_dist(o.hand, handle) > 0.02,
@@ -34,7 +35,7 @@ def handle_press(obs: Array) -> Array:
 
 @register("handle-pull-side-v3")
 def handle_pull_side(obs: Array) -> Array:
-    o = parse(obs)
+    o = Observation(obs)
     target = first_true(
         [
             (xy_dist(o.hand, o.obj) > 0.04, o.obj + jnp.array([0.0, 0.0, 0.1])),
@@ -48,7 +49,7 @@ def handle_pull_side(obs: Array) -> Array:
 
 @register("handle-pull-v3")
 def handle_pull(obs: Array) -> Array:
-    o = parse(obs)
+    o = Observation(obs)
     handle = o.obj + jnp.array([0.0, -0.04, 0.0])
     target = first_true(
         [

@@ -5,14 +5,15 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
-from mwjax.policies.common import action, first_true, move, parse, register, xy_dist
+from mwjax.observation import Observation
+from mwjax.policies.common import action, first_true, move, register, xy_dist
 
 Array = jax.Array
 
 
 @register("peg-insert-side-v3")
 def peg_insert_side(obs: Array) -> Array:
-    o = parse(obs)
+    o = Observation(obs)
     # The hole: its y is the goal's; x overshoots the lowest goal x (harmless), z is fixed.
     hole = jnp.array([-0.35, o.goal[1], 0.16])
     target = first_true(
@@ -30,7 +31,7 @@ def peg_insert_side(obs: Array) -> Array:
 
 @register("peg-unplug-side-v3")
 def peg_unplug_side(obs: Array) -> Array:
-    o = parse(obs)
+    o = Observation(obs)
     peg = o.obj + jnp.array([-0.02, 0.0, 0.035])
     target = first_true(
         [

@@ -6,7 +6,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from mwjax.policies.common import action, first_true, move, near, parse, register, xy_dist
+from mwjax.observation import Observation
+from mwjax.policies.common import action, first_true, move, near, register, xy_dist
 
 Array = jax.Array
 
@@ -15,7 +16,7 @@ BIN = np.array([0.12, 0.7, 0.02], np.float32)  # where bin-picking drops the cub
 
 @register("pick-out-of-hole-v3")
 def pick_out_of_hole(obs: Array) -> Array:
-    o = parse(obs)
+    o = Observation(obs)
     puck = o.obj + jnp.array([0.0, 0.0, 0.02])
     target = first_true(
         [
@@ -31,7 +32,7 @@ def pick_out_of_hole(obs: Array) -> Array:
 
 @register("shelf-place-v3")
 def shelf_place(obs: Array) -> Array:
-    o = parse(obs)
+    o = Observation(obs)
     block = o.obj + jnp.array([-0.005, 0.0, 0.015])
     shelf_x = o.goal[0]
     target = first_true(
@@ -51,7 +52,7 @@ def shelf_place(obs: Array) -> Array:
 
 @register("bin-picking-v3")
 def bin_picking(obs: Array) -> Array:
-    o = parse(obs)
+    o = Observation(obs)
     # Aim as if the cube sat mid-bin in y: closing fingers then drag it off the edge, and they
     # cannot catch on the bin's wall.
     cube = o.obj + jnp.array([0.0, 0.0, 0.03])

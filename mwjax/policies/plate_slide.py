@@ -5,12 +5,13 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
-from mwjax.policies.common import Obs, action, first_true, move, parse, register, xy_dist
+from mwjax.observation import Observation
+from mwjax.policies.common import action, first_true, move, register, xy_dist
 
 Array = jax.Array
 
 
-def _slide(o: Obs, contact: Array, xy_tol: float, hover: float, push_target: Array) -> Array:
+def _slide(o: Observation, contact: Array, xy_tol: float, hover: float, push_target: Array) -> Array:
     """The plate slides' shared plan: hover `hover` above the contact point beside the plate,
     descend onto it, then push toward `push_target`."""
     return first_true(
@@ -24,7 +25,7 @@ def _slide(o: Obs, contact: Array, xy_tol: float, hover: float, push_target: Arr
 
 @register("plate-slide-v3")
 def plate_slide(obs: Array) -> Array:
-    o = parse(obs)
+    o = Observation(obs)
     contact = o.obj + jnp.array([0.0, -0.055, 0.03])  # in front of the plate (-y)
     # Push back (+y) to the goal's x, at the contact height.
     target = _slide(o, contact, 0.03, 0.1, jnp.array([o.goal[0], 0.9, contact[2]]))
@@ -33,7 +34,7 @@ def plate_slide(obs: Array) -> Array:
 
 @register("plate-slide-side-v3")
 def plate_slide_side(obs: Array) -> Array:
-    o = parse(obs)
+    o = Observation(obs)
     contact = o.obj + jnp.array([0.07, 0.0, -0.005])  # beside the plate (+x)
     # Push in -x (drifting to y = 0.6) until x = -0.2, then keep pushing relative to the plate.
     push_target = jnp.where(
@@ -47,7 +48,7 @@ def plate_slide_side(obs: Array) -> Array:
 
 @register("plate-slide-back-v3")
 def plate_slide_back(obs: Array) -> Array:
-    o = parse(obs)
+    o = Observation(obs)
     contact = o.obj + jnp.array([0.0, -0.065, 0.025])  # in front of the plate (-y), pulling it back
     push_target = first_true(
         [
@@ -62,7 +63,7 @@ def plate_slide_back(obs: Array) -> Array:
 
 @register("plate-slide-back-side-v3")
 def plate_slide_back_side(obs: Array) -> Array:
-    o = parse(obs)
+    o = Observation(obs)
     contact = o.obj + jnp.array([0.023, 0.0, 0.025])  # beside the plate (+x), pushing it in +x
     push_target = jnp.array([o.hand[0] + 0.1, 0.6, o.hand[2]])
     target = _slide(o, contact, 0.01, 0.07, push_target)

@@ -6,7 +6,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from mwjax.policies.common import Obs, action, first_true, move, near, parse, register, xy_dist
+from mwjax.observation import Observation
+from mwjax.policies.common import action, first_true, move, near, register, xy_dist
 
 Array = jax.Array
 
@@ -24,13 +25,13 @@ def _in_wall_zone(pos: Array, x: tuple[float, float], y: tuple[float, float]) ->
 
 @register("reach-v3")
 def reach(obs: Array) -> Array:
-    o = parse(obs)
+    o = Observation(obs)
     return action(move(o.hand, o.goal, p=5.0), 0.0)
 
 
 @register("pick-place-v3")
 def pick_place(obs: Array) -> Array:
-    o = parse(obs)
+    o = Observation(obs)
     puck = o.obj + jnp.array([-0.005, 0.0, 0.0])
     target = first_true(
         [
@@ -46,13 +47,13 @@ def pick_place(obs: Array) -> Array:
 
 @register("reach-wall-v3")
 def reach_wall(obs: Array) -> Array:
-    o = parse(obs)
+    o = Observation(obs)
     # Low over the wall: aim far above the goal so the hand climbs while still heading there.
     blocked = _in_wall_zone(o.hand, (-0.1, 0.3), (0.60, 0.80)) & (o.hand[2] < 0.25)
     return action(move(o.hand, jnp.where(blocked, o.goal + UP, o.goal), p=5.0), 0.0)
 
 
-def _push(o: Obs, goal_phase_target: Array) -> Array:
+def _push(o: Observation, goal_phase_target: Array) -> Array:
     """push-v3 and push-wall-v3: hover over the puck, drop onto it, then head for the target."""
     puck = o.obj + jnp.array([-0.005, 0.0, 0.0])
     target = first_true(
@@ -69,13 +70,13 @@ def _push(o: Obs, goal_phase_target: Array) -> Array:
 
 @register("push-v3")
 def push(obs: Array) -> Array:
-    o = parse(obs)
+    o = Observation(obs)
     return _push(o, o.goal)
 
 
 @register("push-wall-v3")
 def push_wall(obs: Array) -> Array:
-    o = parse(obs)
+    o = Observation(obs)
     puck = o.obj + jnp.array([-0.005, 0.0, 0.0])
     # With the wall between the puck and the goal, push around it (-x, or +y near its ends).
     near_wall_end = ((-0.15 < puck[0]) & (puck[0] < 0.05)) | ((0.15 < puck[0]) & (puck[0] < 0.35))
@@ -91,7 +92,7 @@ def push_wall(obs: Array) -> Array:
 
 @register("pick-place-wall-v3")
 def pick_place_wall(obs: Array) -> Array:
-    o = parse(obs)
+    o = Observation(obs)
     puck = o.obj + jnp.array([-0.005, 0.0, 0.0])
     over_wall = _in_wall_zone(o.hand, (-0.15, 0.35), (0.60, 0.80))
     target = first_true(
@@ -110,7 +111,7 @@ def pick_place_wall(obs: Array) -> Array:
 
 @register("push-back-v3")
 def push_back(obs: Array) -> Array:
-    o = parse(obs)
+    o = Observation(obs)
     target = first_true(
         [
             (xy_dist(o.hand, o.obj) > 0.04, o.obj + jnp.array([0.0, 0.0, 0.3])),
@@ -125,7 +126,7 @@ def push_back(obs: Array) -> Array:
 
 @register("sweep-v3")
 def sweep(obs: Array) -> Array:
-    o = parse(obs)
+    o = Observation(obs)
     cube = o.obj + jnp.array([0.0, 0.0, 0.015])
     # Only while the hand is short of x = 0.2 does it go for the cube; otherwise it sweeps on.
     short = o.hand[0] < 0.2
@@ -143,7 +144,7 @@ def sweep(obs: Array) -> Array:
 
 @register("sweep-into-v3")
 def sweep_into(obs: Array) -> Array:
-    o = parse(obs)
+    o = Observation(obs)
     cube = o.obj + jnp.array([-0.005, 0.0, 0.01])
     target = first_true(
         [
@@ -158,7 +159,7 @@ def sweep_into(obs: Array) -> Array:
 
 @register("hand-insert-v3")
 def hand_insert(obs: Array) -> Array:
-    o = parse(obs)
+    o = Observation(obs)
     target = first_true(
         [
             (xy_dist(o.hand, o.obj) > 0.02, o.obj + jnp.array([0.0, 0.0, 0.1])),

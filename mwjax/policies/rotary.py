@@ -5,14 +5,15 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
-from mwjax.policies.common import action, first_true, move, parse, register, xy_dist
+from mwjax.observation import Observation
+from mwjax.policies.common import action, first_true, move, register, xy_dist
 
 Array = jax.Array
 
 
 @register("dial-turn-v3")
 def dial_turn(obs: Array) -> Array:
-    o = parse(obs)
+    o = Observation(obs)
     knob = o.obj + jnp.array([0.05, 0.02, 0.09])
     target = first_true(
         [
@@ -26,7 +27,7 @@ def dial_turn(obs: Array) -> Array:
 
 @register("lever-pull-v3")
 def lever_pull(obs: Array) -> Array:
-    o = parse(obs)
+    o = Observation(obs)
     lever = o.obj + jnp.array([0.0, -0.055, 0.0])
     target = first_true(
         [
@@ -40,7 +41,7 @@ def lever_pull(obs: Array) -> Array:
 
 def _turn_faucet(obs: Array, side: float) -> Array:
     """Hover over the handle's `-side` x edge, drop to it, then push it round towards `side`."""
-    o = parse(obs)
+    o = Observation(obs)
     handle = o.obj + jnp.array([-0.04 * side, 0.0, 0.03])
     target = first_true(
         [

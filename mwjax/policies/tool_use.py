@@ -5,7 +5,8 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
-from mwjax.policies.common import action, first_true, move, parse, register, xy_dist
+from mwjax.observation import Observation
+from mwjax.policies.common import action, first_true, move, register, xy_dist
 
 Array = jax.Array
 
@@ -13,7 +14,7 @@ Array = jax.Array
 def _stick_to_thermos(obs: Array, stick_dx: float, thermos_offset: Array, goal: Array, p: float) -> Array:
     """Grasp the stick, bring its tip in line with the thermos (y, then z), push into it; once the
     stick is within 4 cm of the thermos along x, head for `goal` (stick push and pull)."""
-    o = parse(obs)
+    o = Observation(obs)
     stick = o.obj + jnp.array([stick_dx, 0.0, 0.03])
     thermos = o.obj2 + thermos_offset
     to_thermos = first_true(
@@ -32,20 +33,20 @@ def _stick_to_thermos(obs: Array, stick_dx: float, thermos_offset: Array, goal: 
 
 @register("stick-push-v3")
 def stick_push(obs: Array) -> Array:
-    goal = parse(obs).goal + jnp.array([0.0, 0.0, 0.132])
+    goal = Observation(obs).goal + jnp.array([0.0, 0.0, 0.132])
     return _stick_to_thermos(obs, stick_dx=0.015, thermos_offset=jnp.zeros(3), goal=goal, p=10.0)
 
 
 @register("stick-pull-v3")
 def stick_pull(obs: Array) -> Array:
-    goal = parse(obs).goal + jnp.array([-0.05, 0.0, 0.0])
+    goal = Observation(obs).goal + jnp.array([-0.05, 0.0, 0.0])
     thermos_offset = jnp.array([-0.015, 0.0, 0.03])
     return _stick_to_thermos(obs, stick_dx=-0.015, thermos_offset=thermos_offset, goal=goal, p=25.0)
 
 
 @register("hammer-v3")
 def hammer(obs: Array) -> Array:
-    o = parse(obs)
+    o = Observation(obs)
     grip = o.obj + jnp.array([-0.04, 0.0, -0.01])  # the hammer's handle
     # The reference ignores the observed goal: a fixed point in front of the nail.
     strike = jnp.array([0.24 - 0.19, 0.71, 0.11 + 0.05])

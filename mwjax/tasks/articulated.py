@@ -6,8 +6,10 @@ from collections.abc import Sequence
 
 import jax.numpy as jnp
 
-from mwjax import rewards_v1, rewards_v2
-from mwjax.tasks.spec import ConstantsFn, Frame, ObjectsFn, PlaceFn, Placement, TaskSpec, quat_from_xmat
+from mwjax.contracts import Frame, Placement
+from mwjax.rewards_v1 import articulated as v1
+from mwjax.rewards_v2 import articulated as v2
+from mwjax.tasks.spec import ConstantsFn, ObjectsFn, PlaceFn, TaskSpec, quat_from_xmat
 
 HAND_INIT = (0.0, 0.6, 0.2)
 
@@ -104,8 +106,8 @@ DOOR_OPEN = TaskSpec(
     place=place_fixture("door", (-0.3, -0.45, 0.0), joint="doorjoint", joint_pos=0.0, zero_joint_qvel=True),
     constants=_door_open_constants,
     objects=_door_handle,
-    reward_v2=rewards_v2.door_open,
-    reward_v1=rewards_v1.door_open,
+    reward_v2=v2.door_open,
+    reward_v1=v1.door_open,
     moved_bodies=("door",),
 )
 
@@ -119,8 +121,8 @@ DRAWER_OPEN = TaskSpec(
     place=place_fixture("drawer", (0.0, -0.16 - 0.2, 0.09)),
     constants=_init_tcp,
     objects=_drawer_open_handle,
-    reward_v2=rewards_v2.drawer_open,
-    reward_v1=rewards_v1.drawer_open,
+    reward_v2=v2.drawer_open,
+    reward_v1=v1.drawer_open,
     moved_bodies=_DRAWER_MOVED,
 )
 
@@ -134,8 +136,8 @@ DRAWER_CLOSE = TaskSpec(
     place=place_fixture("drawer", (0.0, -0.16, 0.09), joint="goal_slidey", joint_pos=-0.15),
     constants=_drawer_close_constants,
     objects=_drawer_close_handle,
-    reward_v2=rewards_v2.drawer_close,
-    reward_v1=rewards_v1.drawer_close,
+    reward_v2=v2.drawer_close,
+    reward_v1=v1.drawer_close,
     moved_bodies=_DRAWER_MOVED,
 )
 
@@ -200,8 +202,8 @@ DOOR_CLOSE = TaskSpec(
     place=place_fixture("door", (0.2, -0.2, 0.0), joint="doorjoint", joint_pos=-1.5708, zero_joint_qvel=True),
     constants=_door_close_constants,
     objects=_door_handle,
-    reward_v2=rewards_v2.door_close,
-    reward_v1=rewards_v1.door_close,
+    reward_v2=v2.door_close,
+    reward_v1=v1.door_close,
     moved_bodies=("door",),  # door-open shares the scene
 )
 
@@ -219,8 +221,8 @@ DOOR_LOCK = TaskSpec(
     reset_env_steps=1,
     constants=_lock_constants(_LOCK_GOAL_OFFSET),
     objects=_lock_objects("lockStartLock"),
-    reward_v2=rewards_v2.door_lock,
-    reward_v1=rewards_v1.door_lock,
+    reward_v2=v2.door_lock,
+    reward_v1=v1.door_lock,
     moved_bodies=("door",),
 )
 
@@ -238,8 +240,8 @@ DOOR_UNLOCK = TaskSpec(
     place=place_fixture("door", (0.0, 0.0, 0.0), joint=_LOCK_ADR, joint_pos=1.5708, zero_joint_qvel=True),
     constants=_lock_constants(_UNLOCK_GOAL_OFFSET),
     objects=_lock_objects("lockStartUnlock"),
-    reward_v2=rewards_v2.door_unlock,
-    reward_v1=rewards_v1.door_unlock,
+    reward_v2=v2.door_unlock,
+    reward_v1=v1.door_unlock,
     moved_bodies=("door",),
 )
 
@@ -338,8 +340,8 @@ BUTTON_PRESS_TOPDOWN = TaskSpec(
     place=_place_button_topdown,
     constants=_button_topdown_constants,
     objects=_button_topdown,
-    reward_v2=rewards_v2.button_press_topdown,
-    reward_v1=rewards_v1.button_press_topdown,
+    reward_v2=v2.button_press_topdown,
+    reward_v1=v1.button_press_topdown,
     moved_bodies=("box",),
 )
 
@@ -353,8 +355,8 @@ WINDOW_OPEN = TaskSpec(
     place=place_fixture("window", (0.2, 0.0, 0.0), joint="window_slide", joint_pos=0.0),
     constants=_window_open_constants,
     objects=_window_open_handle,
-    reward_v2=rewards_v2.window_open,
-    reward_v1=rewards_v1.window_open,
+    reward_v2=v2.window_open,
+    reward_v1=v1.window_open,
     moved_bodies=_WINDOW_MOVED,
 )
 
@@ -368,8 +370,8 @@ WINDOW_CLOSE = TaskSpec(
     place=place_fixture("window", (0.0, 0.0, 0.0), joint="window_slide", joint_pos=0.2),
     constants=_window_close_constants,
     objects=_window_close_handle,
-    reward_v2=rewards_v2.window_close,
-    reward_v1=rewards_v1.window_close,
+    reward_v2=v2.window_close,
+    reward_v1=v1.window_close,
     moved_bodies=_WINDOW_MOVED,
 )
 
@@ -382,8 +384,8 @@ BUTTON_PRESS_TOPDOWN_WALL = TaskSpec(
     place=_place_button_topdown,
     constants=_button_topdown_constants,
     objects=_button_topdown,
-    reward_v2=rewards_v2.button_press_topdown_wall,
-    reward_v1=rewards_v1.button_press_topdown_wall,
+    reward_v2=v2.button_press_topdown_wall,
+    reward_v1=v1.button_press_topdown_wall,
     moved_bodies=("box",),
 )
 
@@ -396,8 +398,8 @@ BUTTON_PRESS = TaskSpec(
     place=_place_button_front,
     constants=_button_front_constants,
     objects=_button_front,
-    reward_v2=rewards_v2.button_press,
-    reward_v1=rewards_v1.button_press,
+    reward_v2=v2.button_press,
+    reward_v1=v1.button_press,
     moved_bodies=("box",),
 )
 
@@ -410,8 +412,8 @@ BUTTON_PRESS_WALL = TaskSpec(
     place=_place_button_front,
     constants=_button_front_constants,
     objects=_button_front,
-    reward_v2=rewards_v2.button_press_wall,
-    reward_v1=rewards_v1.button_press_wall,
+    reward_v2=v2.button_press_wall,
+    reward_v1=v1.button_press_wall,
     moved_bodies=("box",),
 )
 

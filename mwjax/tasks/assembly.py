@@ -5,8 +5,10 @@ from __future__ import annotations
 import jax.numpy as jnp
 import numpy as np
 
-from mwjax import rewards_v1, rewards_v2
-from mwjax.tasks.spec import Frame, Placement, TaskSpec, set_object_xyz
+from mwjax.contracts import Frame, Placement
+from mwjax.rewards_v1 import assembly as v1
+from mwjax.rewards_v2 import assembly as v2
+from mwjax.tasks.spec import TaskSpec, set_object_xyz
 
 # Both tasks move the peg of their shared scene.
 _MOVED = ("peg",)
@@ -90,8 +92,8 @@ ASSEMBLY = TaskSpec(
     place=_place_assembly,
     constants=_assembly_constants,
     objects=_nut,
-    reward_v2=rewards_v2.assembly,
-    reward_v1=rewards_v1.assembly,
+    reward_v2=v2.assembly,
+    reward_v1=v1.assembly,
     moved_bodies=_MOVED,
     rand_vec_valid=_nut_peg_apart,
 )
@@ -112,8 +114,8 @@ DISASSEMBLE = TaskSpec(
     place=_place_disassemble,
     constants=_disassemble_constants,
     objects=_nut,
-    reward_v2=rewards_v2.disassemble,
-    reward_v1=rewards_v1.disassemble,
+    reward_v2=v2.disassemble,
+    reward_v1=v1.disassemble,
     moved_bodies=_MOVED,
     rand_vec_valid=_nut_peg_apart,
 )

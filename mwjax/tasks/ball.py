@@ -5,8 +5,10 @@ from __future__ import annotations
 import jax.numpy as jnp
 import numpy as np
 
-from mwjax import rewards_v1, rewards_v2
-from mwjax.tasks.spec import Frame, Placement, TaskSpec, quat_from_xmat, set_object_xyz
+from mwjax.contracts import Frame, Placement
+from mwjax.rewards_v1 import ball as v1
+from mwjax.rewards_v2 import ball as v2
+from mwjax.tasks.spec import TaskSpec, quat_from_xmat, set_object_xyz
 
 # Both balls start at init_config's height, whatever rand_vec's object z.
 _BALL_Z = 0.03
@@ -67,8 +69,8 @@ BASKETBALL = TaskSpec(
     place=_place_basketball,
     constants=_basketball_constants,
     objects=_basketball_objects,
-    reward_v2=rewards_v2.basketball,
-    reward_v1=rewards_v1.basketball,
+    reward_v2=v2.basketball,
+    reward_v1=v1.basketball,
     moved_bodies=("basket_goal",),
     rand_vec_valid=_ball_apart_from_goal,
 )
@@ -107,8 +109,8 @@ SOCCER = TaskSpec(
     place=_place_soccer,
     constants=_soccer_constants,
     objects=_soccer_objects,
-    reward_v2=rewards_v2.soccer,
-    reward_v1=rewards_v1.soccer,
+    reward_v2=v2.soccer,
+    reward_v1=v1.soccer,
     moved_bodies=("goal_whole",),
     rand_vec_valid=_ball_apart_from_goal,
 )

@@ -5,8 +5,10 @@ from __future__ import annotations
 import jax.numpy as jnp
 import numpy as np
 
-from mwjax import rewards_v1, rewards_v2
-from mwjax.tasks.spec import Frame, Placement, TaskSpec, set_object_xyz
+from mwjax.contracts import Frame, Placement
+from mwjax.rewards_v1 import box_close as v1
+from mwjax.rewards_v2 import box_close as v2
+from mwjax.tasks.spec import TaskSpec, set_object_xyz
 
 _LID_Z = 0.02  # init_config's obj_init_pos z
 _LIFT_THRESH = 0.12  # liftThresh: V1's target height above the handle's resting height
@@ -61,8 +63,8 @@ BOX_CLOSE = TaskSpec(
     place=_place,
     constants=_constants,
     objects=_lid,
-    reward_v2=rewards_v2.box_close,
-    reward_v1=rewards_v1.box_close,
+    reward_v2=v2.box_close,
+    reward_v1=v1.box_close,
     moved_bodies=("boxbody",),
     # reset_model runs frame_skip physics steps between moving the box and placing the lid.
     reset_env_steps=1,

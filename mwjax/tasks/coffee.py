@@ -5,8 +5,10 @@ from __future__ import annotations
 import jax.numpy as jnp
 import numpy as np
 
-from mwjax import rewards_v1, rewards_v2
-from mwjax.tasks.spec import ConstantsFn, Frame, Placement, TaskSpec, quat_from_xmat
+from mwjax.contracts import Frame, Placement
+from mwjax.rewards_v1 import coffee as v1
+from mwjax.rewards_v2 import coffee as v2
+from mwjax.tasks.spec import ConstantsFn, TaskSpec, quat_from_xmat
 
 # All three tasks move the machine of the shared scene, so they list the same moved bodies.
 _MOVED = ("coffee_machine",)
@@ -74,8 +76,8 @@ COFFEE_BUTTON = TaskSpec(
     place=_place_button,
     constants=_button_constants,
     objects=_button,
-    reward_v2=rewards_v2.coffee_button,
-    reward_v1=rewards_v1.coffee_button,
+    reward_v2=v2.coffee_button,
+    reward_v1=v1.coffee_button,
     moved_bodies=_MOVED,
 )
 
@@ -120,8 +122,8 @@ COFFEE_PULL = TaskSpec(
     place=_place_pull,
     constants=_mug_constants("max_pull_dist"),
     objects=_mug,
-    reward_v2=rewards_v2.coffee_mug,
-    reward_v1=rewards_v1.coffee_pull,
+    reward_v2=v2.coffee_mug,
+    reward_v1=v1.coffee_pull,
     moved_bodies=_MOVED,
     rand_vec_valid=_mug_apart,
 )
@@ -137,8 +139,8 @@ COFFEE_PUSH = TaskSpec(
     place=_place_push,
     constants=_mug_constants("max_push_dist"),
     objects=_mug,
-    reward_v2=rewards_v2.coffee_mug,
-    reward_v1=rewards_v1.coffee_push,
+    reward_v2=v2.coffee_mug,
+    reward_v1=v1.coffee_push,
     moved_bodies=_MOVED,
     rand_vec_valid=_mug_apart,
 )

@@ -10,9 +10,11 @@ from __future__ import annotations
 
 import jax.numpy as jnp
 
-from mwjax import rewards_v1, rewards_v2
+from mwjax.contracts import Frame, Placement
+from mwjax.rewards_v1 import handles as v1
+from mwjax.rewards_v2 import handles as v2
 from mwjax.tasks.articulated import HAND_INIT, place_fixture
-from mwjax.tasks.spec import Frame, ObjectsFn, PlaceFn, Placement, TaskSpec
+from mwjax.tasks.spec import ObjectsFn, PlaceFn, TaskSpec
 
 # The lever joint is unnamed in the scenes; the reference writes qpos[9] / qvel[9] directly.
 _LEVER_ADR = 9
@@ -63,8 +65,8 @@ HANDLE_PRESS_SIDE = TaskSpec(
     place=_place_box(-0.001),
     constants=_press_constants,
     objects=_handle_site("handleStart"),
-    reward_v2=rewards_v2.handle_press,
-    reward_v1=rewards_v1.handle_press_side,
+    reward_v2=v2.handle_press,
+    reward_v1=v1.handle_press_side,
     moved_bodies=_BOX_MOVED,
 )
 
@@ -78,8 +80,8 @@ HANDLE_PULL_SIDE = TaskSpec(
     place=_place_box(-0.1),
     constants=_pull_side_constants,
     objects=_handle_site("handleCenter"),
-    reward_v2=rewards_v2.handle_pull_side,
-    reward_v1=rewards_v1.handle_pull_side,
+    reward_v2=v2.handle_pull_side,
+    reward_v1=v1.handle_pull_side,
     moved_bodies=_BOX_MOVED,
 )
 
@@ -112,8 +114,8 @@ HANDLE_PRESS = TaskSpec(
     place=_place_box(-0.001),
     constants=_press_constants,
     objects=_handle_site("handleStart"),
-    reward_v2=rewards_v2.handle_press,
-    reward_v1=rewards_v1.handle_press,
+    reward_v2=v2.handle_press,
+    reward_v1=v1.handle_press,
     moved_bodies=_BOX_MOVED,
 )
 
@@ -129,8 +131,8 @@ HANDLE_PULL = TaskSpec(
     place=_place_box(-0.1),
     constants=_pull_constants,
     objects=_handle_site("handleRight"),
-    reward_v2=rewards_v2.handle_pull,
-    reward_v1=rewards_v1.handle_pull,
+    reward_v2=v2.handle_pull,
+    reward_v1=v1.handle_pull,
     moved_bodies=_BOX_MOVED,
 )
 

@@ -5,8 +5,10 @@ from __future__ import annotations
 import jax.numpy as jnp
 import numpy as np
 
-from mwjax import rewards_v1, rewards_v2
-from mwjax.tasks.spec import Frame, Placement, TaskSpec, quat_from_xmat, set_object_xyz
+from mwjax.contracts import Frame, Placement
+from mwjax.rewards_v1 import peg as v1
+from mwjax.rewards_v2 import peg as v2
+from mwjax.tasks.spec import TaskSpec, quat_from_xmat, set_object_xyz
 
 # The goal (hole) is this far from the box body origin; the goal space is shifted by it too.
 _HOLE_OFFSET = (0.03, 0.0, 0.13)
@@ -55,8 +57,8 @@ PEG_INSERT_SIDE = TaskSpec(
     place=_place,
     constants=_constants,
     objects=_peg,
-    reward_v2=rewards_v2.peg_insert_side,
-    reward_v1=rewards_v1.peg_insert_side,
+    reward_v2=v2.peg_insert_side,
+    reward_v1=v1.peg_insert_side,
     moved_bodies=("box",),
     rand_vec_valid=_peg_box_apart,
 )
@@ -112,8 +114,8 @@ PEG_UNPLUG_SIDE = TaskSpec(
     place=_place_unplug,
     constants=_unplug_constants,
     objects=_plug,
-    reward_v2=rewards_v2.peg_unplug_side,
-    reward_v1=rewards_v1.peg_unplug_side,
+    reward_v2=v2.peg_unplug_side,
+    reward_v1=v1.peg_unplug_side,
     moved_bodies=("box",),
 )
 

@@ -7,8 +7,10 @@ from collections.abc import Callable
 import jax.numpy as jnp
 import numpy as np
 
-from mwjax import rewards_v1, rewards_v2
-from mwjax.tasks.spec import Frame, Placement, StepInputs, TaskSpec, quat_from_xmat, set_object_xyz
+from mwjax.contracts import Frame, Placement, StepInputs
+from mwjax.rewards_v1 import placing as v1
+from mwjax.rewards_v2 import placing as v2
+from mwjax.tasks.spec import TaskSpec, quat_from_xmat, set_object_xyz
 
 HAND_INIT = (0.0, 0.6, 0.2)
 
@@ -73,8 +75,8 @@ PICK_OUT_OF_HOLE = TaskSpec(
     place=_place_pick_out_of_hole,
     constants=_pick_out_of_hole_constants,
     objects=_block_body,
-    reward_v2=rewards_v2.pick_out_of_hole,
-    reward_v1=rewards_v1.pick_out_of_hole,
+    reward_v2=v2.pick_out_of_hole,
+    reward_v1=v1.pick_out_of_hole,
     rand_vec_valid=_apart(0.15),
 )
 
@@ -123,8 +125,8 @@ SHELF_PLACE = TaskSpec(
     place=_place_shelf,
     constants=_shelf_constants,
     objects=_block_geom_quat,
-    reward_v2=rewards_v2.shelf_place,
-    reward_v1=rewards_v1.shelf_place,
+    reward_v2=v2.shelf_place,
+    reward_v1=v1.shelf_place,
     moved_bodies=("shelf",),
     rand_vec_valid=_apart(0.1),
 )
@@ -153,7 +155,7 @@ def _bin_constants(frame: Frame, placement: Placement, settled: Frame) -> dict[s
 
 def _latch_target_to_obj_init(step: StepInputs) -> dict[str, jnp.ndarray]:
     """V2's in-place margin is the cube-goal distance at the episode's first compute_reward."""
-    return {"target_to_obj_init": jnp.linalg.norm(step.obs[4:7] - step.target_pos)}
+    return {"target_to_obj_init": jnp.linalg.norm(step.obs.obj - step.target_pos)}
 
 
 BIN_PICKING = TaskSpec(
@@ -168,8 +170,8 @@ BIN_PICKING = TaskSpec(
     place=_place_bin,
     constants=_bin_constants,
     objects=_block_body,
-    reward_v2=rewards_v2.bin_picking,
-    reward_v1=rewards_v1.bin_picking,
+    reward_v2=v2.bin_picking,
+    reward_v1=v1.bin_picking,
     latch=_latch_target_to_obj_init,
 )
 

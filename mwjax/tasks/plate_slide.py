@@ -7,8 +7,10 @@ from collections.abc import Sequence
 
 import jax.numpy as jnp
 
-from mwjax import rewards_v1, rewards_v2
-from mwjax.tasks.spec import ConstantsFn, Frame, PlaceFn, Placement, TaskSpec, quat_from_xmat
+from mwjax.contracts import Frame, Placement
+from mwjax.rewards_v1 import plate_slide as v1
+from mwjax.rewards_v2 import plate_slide as v2
+from mwjax.tasks.spec import ConstantsFn, PlaceFn, TaskSpec, quat_from_xmat
 
 HAND_INIT = (0.0, 0.6, 0.2)
 # Every variant lists the goal net body of its scene, moved or not, so scene-mates agree.
@@ -57,8 +59,8 @@ PLATE_SLIDE = TaskSpec(
     place=_place((0.0, 0.0), None),
     constants=_constants((0.0, 0.6, 0.0)),
     objects=_plate,
-    reward_v2=rewards_v2.plate_slide,
-    reward_v1=rewards_v1.plate_slide,
+    reward_v2=v2.plate_slide,
+    reward_v1=v1.plate_slide,
     moved_bodies=_MOVED,
 )
 
@@ -75,8 +77,8 @@ PLATE_SLIDE_SIDE = TaskSpec(
     place=_place((0.0, 0.0), (-0.3, 0.6, 0.0)),
     constants=_constants((0.0, 0.6, 0.0)),
     objects=_plate,
-    reward_v2=rewards_v2.plate_slide_side,
-    reward_v1=rewards_v1.plate_slide,
+    reward_v2=v2.plate_slide_side,
+    reward_v1=v1.plate_slide,
     moved_bodies=_MOVED,
 )
 
@@ -92,8 +94,8 @@ PLATE_SLIDE_BACK = TaskSpec(
     place=_place((0.0, 0.15), (0.0, 0.85, 0.0)),
     constants=_constants((0.0, 0.85, 0.0)),
     objects=_plate,
-    reward_v2=rewards_v2.plate_slide_side,
-    reward_v1=rewards_v1.plate_slide_back,
+    reward_v2=v2.plate_slide_side,
+    reward_v1=v1.plate_slide_back,
     moved_bodies=_MOVED,
 )
 
@@ -109,8 +111,8 @@ PLATE_SLIDE_BACK_SIDE = TaskSpec(
     place=_place((-0.15, 0.0), (-0.25, 0.6, 0.0)),
     constants=_constants((-0.25, 0.6, 0.0)),
     objects=_plate,
-    reward_v2=rewards_v2.plate_slide_side,
-    reward_v1=rewards_v1.plate_slide_back,
+    reward_v2=v2.plate_slide_side,
+    reward_v1=v1.plate_slide_back,
     moved_bodies=_MOVED,
 )
 

@@ -5,8 +5,10 @@ from __future__ import annotations
 import jax.numpy as jnp
 import numpy as np
 
-from mwjax import rewards_v1, rewards_v2
-from mwjax.tasks.spec import Frame, Placement, TaskSpec, quat_from_xmat, set_object_xyz
+from mwjax.contracts import Frame, Placement
+from mwjax.rewards_v1 import reach_push_pick_place as v1
+from mwjax.rewards_v2 import reach_push_pick_place as v2
+from mwjax.tasks.spec import TaskSpec, quat_from_xmat, set_object_xyz
 
 
 def _puck(frame: Frame) -> tuple[jnp.ndarray, jnp.ndarray]:
@@ -72,8 +74,8 @@ REACH = TaskSpec(
     place=_place_reach,
     constants=_reach_constants,
     objects=_puck,
-    reward_v2=rewards_v2.reach,
-    reward_v1=rewards_v1.reach,
+    reward_v2=v2.reach,
+    reward_v1=v1.reach,
     rand_vec_valid=_goal_apart,
 )
 
@@ -88,8 +90,8 @@ PUSH = TaskSpec(
     place=_place_push,
     constants=_puck_constants,
     objects=_puck,
-    reward_v2=rewards_v2.push,
-    reward_v1=rewards_v1.push,
+    reward_v2=v2.push,
+    reward_v1=v1.push,
     rand_vec_valid=_goal_apart,
 )
 
@@ -105,8 +107,8 @@ PICK_PLACE = TaskSpec(
     place=_place_pick_place,
     constants=_puck_constants,
     objects=_puck,
-    reward_v2=rewards_v2.pick_place,
-    reward_v1=rewards_v1.pick_place,
+    reward_v2=v2.pick_place,
+    reward_v1=v1.pick_place,
     rand_vec_valid=_goal_apart,
 )
 
@@ -121,8 +123,8 @@ REACH_WALL = TaskSpec(
     place=_place_reach,
     constants=_reach_constants,
     objects=_puck,
-    reward_v2=rewards_v2.reach_wall,
-    reward_v1=rewards_v1.reach_wall,
+    reward_v2=v2.reach_wall,
+    reward_v1=v1.reach_wall,
     rand_vec_valid=_goal_apart,
 )
 
@@ -137,8 +139,8 @@ PUSH_WALL = TaskSpec(
     place=_place_push_geom_z,
     constants=_puck_constants,
     objects=_puck_geom,
-    reward_v2=rewards_v2.push_wall,
-    reward_v1=rewards_v1.push_wall,
+    reward_v2=v2.push_wall,
+    reward_v1=v1.push_wall,
     rand_vec_valid=_goal_apart,
 )
 
@@ -153,8 +155,8 @@ PICK_PLACE_WALL = TaskSpec(
     place=_place_pick_place,
     constants=_puck_constants,
     objects=_puck_geom,
-    reward_v2=rewards_v2.pick_place_wall,
-    reward_v1=rewards_v1.pick_place_wall,
+    reward_v2=v2.pick_place_wall,
+    reward_v1=v1.pick_place_wall,
     rand_vec_valid=_goal_apart,
 )
 
@@ -169,8 +171,8 @@ PUSH_BACK = TaskSpec(
     place=_place_push_geom_z,
     constants=_puck_constants,
     objects=_puck_geom,
-    reward_v2=rewards_v2.push_back,
-    reward_v1=rewards_v1.push_back,
+    reward_v2=v2.push_back,
+    reward_v1=v1.push_back,
     rand_vec_valid=_goal_apart,
 )
 
@@ -215,8 +217,8 @@ SWEEP = TaskSpec(
     place=_place_sweep,
     constants=_puck_constants,
     objects=_puck_body,
-    reward_v2=rewards_v2.sweep,
-    reward_v1=rewards_v1.sweep,
+    reward_v2=v2.sweep,
+    reward_v1=v1.sweep,
 )
 
 SWEEP_INTO = TaskSpec(
@@ -230,8 +232,8 @@ SWEEP_INTO = TaskSpec(
     place=_place_sweep_into,
     constants=_puck_constants,
     objects=_puck,
-    reward_v2=rewards_v2.sweep_into,
-    reward_v1=rewards_v1.sweep_into,
+    reward_v2=v2.sweep_into,
+    reward_v1=v1.sweep_into,
     rand_vec_valid=_away_from_sweep_into_goal,
 )
 
@@ -267,8 +269,8 @@ HAND_INSERT = TaskSpec(
     place=_place_hand_insert,
     constants=_hand_insert_constants,
     objects=_puck_body,
-    reward_v2=rewards_v2.hand_insert,
-    reward_v1=rewards_v1.hand_insert,
+    reward_v2=v2.hand_insert,
+    reward_v1=v1.hand_insert,
     rand_vec_valid=_goal_apart,
 )
 

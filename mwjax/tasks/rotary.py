@@ -4,9 +4,11 @@ from __future__ import annotations
 
 import jax.numpy as jnp
 
-from mwjax import rewards_v1, rewards_v2
+from mwjax.contracts import Frame, Placement
+from mwjax.rewards_v1 import rotary as v1
+from mwjax.rewards_v2 import rotary as v2
 from mwjax.tasks.articulated import place_fixture
-from mwjax.tasks.spec import Frame, ObjectsFn, Placement, RewardFn, TaskSpec, quat_from_xmat
+from mwjax.tasks.spec import ObjectsFn, RewardFn, TaskSpec, quat_from_xmat
 
 # ---- faucet-open, faucet-close -------------------------------------------------------------------
 
@@ -54,12 +56,8 @@ def _faucet(
     )
 
 
-FAUCET_OPEN = _faucet(
-    "faucet-open-v3", "handleStartOpen", +1.0, -0.05, rewards_v2.faucet_open, rewards_v1.faucet_open
-)
-FAUCET_CLOSE = _faucet(
-    "faucet-close-v3", "handleStartClose", -1.0, -0.1, rewards_v2.faucet_close, rewards_v1.faucet_close
-)
+FAUCET_OPEN = _faucet("faucet-open-v3", "handleStartOpen", +1.0, -0.05, v2.faucet_open, v1.faucet_open)
+FAUCET_CLOSE = _faucet("faucet-close-v3", "handleStartClose", -1.0, -0.1, v2.faucet_close, v1.faucet_close)
 
 # ---- dial-turn -----------------------------------------------------------------------------------
 
@@ -96,8 +94,8 @@ DIAL_TURN = TaskSpec(
     place=place_fixture("dial", (0.0, 0.03, 0.03)),
     constants=_dial_constants,
     objects=_dial_objects,
-    reward_v2=rewards_v2.dial_turn,
-    reward_v1=rewards_v1.dial_turn,
+    reward_v2=v2.dial_turn,
+    reward_v1=v1.dial_turn,
     moved_bodies=("dial",),
 )
 
@@ -156,8 +154,8 @@ LEVER_PULL = TaskSpec(
     place=place_fixture("lever", (_LEVER_AXIS[0], 0.0, _LEVER_AXIS[2] + _LEVER_RADIUS)),
     constants=_lever_constants,
     objects=_lever_objects,
-    reward_v2=rewards_v2.lever_pull,
-    reward_v1=rewards_v1.lever_pull,
+    reward_v2=v2.lever_pull,
+    reward_v1=v1.lever_pull,
     moved_bodies=("lever",),
 )
 

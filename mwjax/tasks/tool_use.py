@@ -8,9 +8,11 @@ import jax.numpy as jnp
 import mujoco
 import numpy as np
 
-from mwjax import rewards_v1, rewards_v2
+from mwjax.contracts import Frame, Placement
 from mwjax.models import load_scene
-from mwjax.tasks.spec import Frame, ObjectsFn, PlaceFn, Placement, TaskSpec, quat_from_xmat, set_object_xyz
+from mwjax.rewards_v1 import tool_use as v1
+from mwjax.rewards_v2 import tool_use as v2
+from mwjax.tasks.spec import ObjectsFn, PlaceFn, TaskSpec, quat_from_xmat, set_object_xyz
 
 # ---- stick-push, stick-pull: a stick (free joint) and a thermos on two slide joints --------------
 
@@ -23,7 +25,7 @@ _THERMOS_QVEL_SLIDE_Y = 16
 
 def _stick_contact_geometry() -> dict[str, np.ndarray | float]:
     """Half sizes of the stick's collision box and of a finger pad box, and the pads' contact
-    margin, as compiled in the scene (stick-push's grasp test, `rewards_v2.pads_touching_box`)."""
+    margin, as compiled in the scene (stick-push's grasp test, `v2.pads_touching_box`)."""
     model = load_scene(_STICK_SCENE)
     pad = model.geom("leftpad_geom")
     if not np.array_equal(pad.size, model.geom("rightpad_geom").size):
@@ -107,8 +109,8 @@ STICK_PUSH = TaskSpec(
     constants=_stick_constants,
     # The thermos is observed 9 cm past its insertion site in y.
     objects=_stick_objects((0.0, 0.09, 0.0)),
-    reward_v2=functools.partial(rewards_v2.stick_push, **_stick_contact_geometry()),
-    reward_v1=rewards_v1.stick_push,
+    reward_v2=functools.partial(v2.stick_push, **_stick_contact_geometry()),
+    reward_v1=v1.stick_push,
     rand_vec_valid=_stick_apart_from_goal,
 )
 
@@ -126,8 +128,8 @@ STICK_PULL = TaskSpec(
     place=_place_stick((0.0, 0.09), goal_z=_STICK_Z),
     constants=_stick_constants,
     objects=_stick_objects((0.0, 0.0, 0.0)),
-    reward_v2=rewards_v2.stick_pull,
-    reward_v1=rewards_v1.stick_pull,
+    reward_v2=v2.stick_pull,
+    reward_v1=v1.stick_pull,
     rand_vec_valid=_stick_apart_from_goal,
 )
 
@@ -179,8 +181,8 @@ HAMMER = TaskSpec(
     place=_place_hammer,
     constants=_hammer_constants,
     objects=_hammer_objects,
-    reward_v2=rewards_v2.hammer,
-    reward_v1=rewards_v1.hammer,
+    reward_v2=v2.hammer,
+    reward_v1=v1.hammer,
 )
 
 TASKS: tuple[TaskSpec, ...] = (STICK_PUSH, STICK_PULL, HAMMER)

@@ -20,7 +20,8 @@ import numpy as np
 from gymnasium.vector import AutoresetMode
 
 from mwjax import benchmarks, rendering
-from mwjax.env import MAX_EPISODE_STEPS, Env, State, make
+from mwjax.config import MAX_EPISODE_STEPS, EnvConfig
+from mwjax.env import Env, State, make
 from mwjax.sharding import ShardedEnv
 
 Array = jax.Array
@@ -148,12 +149,12 @@ class MwjaxVectorEnv(gym.vector.VectorEnv):
             self.action_space.seed(seed)
         self._key, key = jax.random.split(self._key)
         self._state = self._reset(key)
-        return self._obs(self._state.obs), {}
+        return self.observation(self._state.obs), {}
 
     def sample_tasks(self) -> tuple[Array, dict]:
         """Every env moves on to its next goal variant and restarts (the reference's ML `sample_tasks`)."""
         self._state = self._sample_goals(self.state)
-        return self._obs(self._state.obs), {}
+        return self.observation(self._state.obs), {}
 
     def step(self, actions: Any) -> tuple[Array, Array, Array, Array, dict]:
         actions = jnp.asarray(actions)
@@ -175,7 +176,7 @@ class MwjaxVectorEnv(gym.vector.VectorEnv):
             final_info["_episode"] = done
             info = _masked(values, ~done)
             info.update(
-                final_obs=self._obs(state.info["final_obs"]),
+                final_obs=self.observation(state.info["final_obs"]),
                 _final_obs=done,
                 final_info=final_info,
                 _final_info=done,
@@ -183,13 +184,15 @@ class MwjaxVectorEnv(gym.vector.VectorEnv):
         else:
             info = _masked(values, jnp.ones_like(done))
             info.update(episode=_masked(episode, done), _episode=done)
-        return self._obs(state.obs), state.reward, state.terminated, state.truncated, info
+        return self.observation(state.obs), state.reward, state.terminated, state.truncated, info
 
     def render(self) -> tuple[np.ndarray, ...] | None:
         frames = self._frames(self._state)
         return None if frames is None else tuple(frames)
 
-    def _obs(self, obs: Array) -> Array:
+    def observation(self, obs: Array) -> Array:
+        """This env's observations of core observations `(num_envs, 39)` (e.g. `state.obs`): with
+        `use_one_hot`, each env's task one-hot appended."""
         return jnp.concatenate([obs, self._one_hot], axis=-1) if self.use_one_hot else obs
 
 
@@ -309,15 +312,17 @@ class MwjaxEnv(_SingleEnv):
         seed_value = 0 if seed is None else seed
         goals = _sampled_goals(benchmarks.benchmark("MT1", env_name), "train", seed_value, num_goals)
         core = Env(
-            "MT1",
-            envs_per_task=1,
-            seed=seed_value,
-            task=env_name,
-            reward_version=reward_function_version,
-            max_episode_steps=MAX_EPISODE_STEPS if max_episode_steps is None else max_episode_steps,
-            terminate_on_success=terminate_on_success,
-            autoreset="disabled",
-            goal_variants=goals,
+            EnvConfig(
+                "MT1",
+                envs_per_task=1,
+                seed=seed_value,
+                task=env_name,
+                reward_version=reward_function_version,
+                max_episode_steps=MAX_EPISODE_STEPS if max_episode_steps is None else max_episode_steps,
+                terminate_on_success=terminate_on_success,
+                autoreset="disabled",
+                goal_variants=goals,
+            )
         )
         one_hot = np.eye(num_tasks, dtype=np.float32)[env_id] if use_one_hot else np.zeros(0, np.float32)
         self._setup(core, jax.random.key(seed_value), one_hot, **render)
@@ -339,13 +344,15 @@ class GoalEnv(_SingleEnv):
             seed = int(np.random.SeedSequence().generate_state(1)[0])
         rand_vec = benchmarks.sample_goal_variants([task], seed, n_goals=1)
         core = Env(
-            "MT1",
-            envs_per_task=1,
-            seed=seed,
-            task=task,
-            partially_observable=hidden,
-            autoreset="disabled",
-            goal_variants=rand_vec,
+            EnvConfig(
+                "MT1",
+                envs_per_task=1,
+                seed=seed,
+                task=task,
+                partially_observable=hidden,
+                autoreset="disabled",
+                goal_variants=rand_vec,
+            )
         )
         self.goal = rand_vec[task][0]
         self._setup(core, jax.random.key(seed), np.zeros(0, np.float32))

@@ -58,9 +58,17 @@ ENGINE_VERSION_DRIFT = {
     # Their resets (RESET_DEVIATIONS).
     "door-lock-v3": 1e-2,
     "door-unlock-v3": 1e-2,
-    # Not isolated: 0.11 by step 8 in a seed-11 random-action episode, 6.7e-3 at seed 7 (MuJoCo C
-    # 3.17 from the recorded state drifted 1.3e-2 in a seed-7 recording, so the engine is a suspect).
-    "bin-picking-v3": 0.15,
+}
+# Observed columns that MuJoCo 3.17 moves away from 3.3.0 more than their task's bound, with their
+# own bound; the task's other columns keep it.
+ENGINE_VERSION_COLUMN_DRIFT = {
+    # The reset puts the 4 cm cube at any x in [-0.21, -0.03], up to 2 cm into a bin side wall
+    # (inner faces at -0.21 and -0.03). 3.3.0's box-box collider reports half that overlap, 3.17's
+    # all of it, so the wall pushes the cube out harder and tips it. Bounds: MuJoCo C 3.17 against
+    # C 3.3.0 from one state, the overlap swept in 0.1 mm steps: largest 0.018 in position, 0.22
+    # in orientation (near the full overlap; not monotonic in it), rounded up. mwjax's cube is
+    # within 3e-5 of C 3.17's; the rest stays under the common bound.
+    "bin-picking-v3": ((np.r_[4:7], 2e-2), (np.r_[7:11], 0.25)),
 }
 
 
@@ -248,8 +256,11 @@ def test_free_running_drift(task, free_run):
     _, _, obs = free_run
     # The stacked previous frame is left out: at step 1 it is the reset frame (see test_reset_obs).
     current = np.setdiff1d(np.r_[0:18, 36:39], CHAOTIC_OBJECT_OBS.get(task, []))
-    recorded = load(task)["obs"][:, :FREE_RUN_STEPS]
-    drift = np.abs(obs[task] - recorded)[..., current].max(axis=(0, 2))
-    print(f"{task}: obs drift per step", " ".join(f"{d:.1e}" for d in drift))
-    tol = ENGINE_VERSION_DRIFT.get(task, FREE_RUN_OBS_TOL)
-    assert drift.max() < tol, f"drift {drift.max():.3g} after {drift.argmax() + 1} steps"
+    error = np.abs(obs[task] - load(task)["obs"][:, :FREE_RUN_STEPS])
+    bounds = ENGINE_VERSION_COLUMN_DRIFT.get(task, ())
+    rest = np.setdiff1d(current, np.concatenate([np.arange(0)] + [columns for columns, _ in bounds]))
+    for columns, bound in ((rest, ENGINE_VERSION_DRIFT.get(task, FREE_RUN_OBS_TOL)), *bounds):
+        drift = error[..., columns].max(axis=(0, 2))
+        name = "obs" if columns is rest else f"obs[{columns[0]}:{columns[-1] + 1}]"
+        print(f"{task}: {name} drift per step", " ".join(f"{d:.1e}" for d in drift))
+        assert drift.max() < bound, f"{name} drift {drift.max():.3g} after {drift.argmax() + 1} steps"

@@ -5,11 +5,13 @@ builds steps exactly as the default (the CPU is bit-reproducible either way)."""
 from __future__ import annotations
 
 import os
-import subprocess
 import sys
+from pathlib import Path
 
+import children
 import jax
 import numpy as np
+import pytest
 
 import mwjax
 
@@ -29,19 +31,18 @@ print(os.environ.get("XLA_FLAGS", ""))
 """
 
 
-def test_the_switch_reaches_warp_and_xla_and_steps_as_the_default(tmp_path):
+def _child(workdir: Path) -> tuple[list[str], dict[str, str]]:
+    environ = {k: v for k, v in os.environ.items() if k not in ("XLA_FLAGS", "MWJAX_DETERMINISTIC")}
+    return [sys.executable, "-c", ROLLOUT, str(workdir / "obs.npy")], {**environ, "MWJAX_DETERMINISTIC": "1"}
+
+
+@pytest.mark.child.with_args(_child)
+def test_the_switch_reaches_warp_and_xla_and_steps_as_the_default(request):
     env = mwjax.make(["reach-v3"], envs_per_task=1, seed=0)
     state = env.reset(jax.random.key(0))
     for i in range(3):
         state = env.step(state, jax.random.uniform(jax.random.key(i), (1, 4), minval=-1, maxval=1))
-    environ = {k: v for k, v in os.environ.items() if k not in ("XLA_FLAGS", "MWJAX_DETERMINISTIC")}
-    out = tmp_path / "obs.npy"
-    run = subprocess.run(
-        [sys.executable, "-c", ROLLOUT, str(out)],
-        env={**environ, "MWJAX_DETERMINISTIC": "1"},
-        capture_output=True,
-        text=True,
-    )
+    run, workdir = children.result(request.node)
     assert run.returncode == 0, run.stderr[-3000:]
     assert "--xla_gpu_deterministic_ops=true" in run.stdout
-    np.testing.assert_array_equal(np.load(out), np.asarray(state.obs))
+    np.testing.assert_array_equal(np.load(workdir / "obs.npy"), np.asarray(state.obs))

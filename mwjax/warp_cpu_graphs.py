@@ -21,6 +21,7 @@ import contextlib
 import ctypes
 import os
 import threading
+import warnings
 from collections.abc import Iterator
 from typing import Any
 
@@ -58,6 +59,8 @@ class _Site:
     def __init__(self) -> None:
         self.calls = 0
         self.graph: Any = None
+        # Recording failed (a call Warp cannot record): the site runs eagerly from then on.
+        self.failed = False
         self.keep: list[Any] = []
         # (index of the FFI buffer, staging pointer, bytes)
         self.copy_in: list[tuple[int, int, int]] = []
@@ -82,13 +85,20 @@ def install() -> None:
             ctypes.cast(attr.value, ctypes.POINTER(ctypes.c_int64)).contents.value
         ]
         site = call_desc.__dict__.setdefault("mwjax_cpu_graph", _Site())
-        if site.graph is None and site.calls < _EAGER_CALLS:
+        if site.graph is None and (site.calls < _EAGER_CALLS or site.failed):
             site.calls += 1
             return original(self, call_frame, platform)
         try:
             with ffi._FFI_CALLBACK_LOCK:
                 _replay(self, site, call_desc, frame)
-        except Exception as e:  # reported to XLA as the original callback does
+        except Exception as e:
+            if site.graph is None:
+                site.failed = True
+                warnings.warn(
+                    f"Warp call {self.name} runs eagerly on the CPU: recording it failed ({e})", stacklevel=2
+                )
+                return original(self, call_frame, platform)
+            # Reported to XLA as the original callback reports its errors.
             return ffi.create_ffi_error(
                 frame.api, ffi.XLA_FFI_Error_Code.UNKNOWN, f"FFI callback error: {type(e).__name__}: {e}"
             )

@@ -20,9 +20,9 @@ import os, sys, jax, jax.numpy as jnp, numpy as np, warp
 import mwjax
 from mwjax import determinism
 env = mwjax.make(["reach-v3"], envs_per_task=1, seed=0)
-state = env.reset(jax.random.key(0))
+state, step = jax.jit(env.reset)(jax.random.key(0)), jax.jit(env.step)
 for i in range(3):
-    state = env.step(state, jax.random.uniform(jax.random.key(i), (1, 4), minval=-1, maxval=1))
+    state = step(state, jax.random.uniform(jax.random.key(i), (1, 4), minval=-1, maxval=1))
 np.save(sys.argv[1], np.asarray(state.obs))
 modules = list(warp._src.context.user_modules.values())
 assert determinism.enabled() == (os.environ.get("MWJAX_DETERMINISTIC") == "1")
@@ -38,10 +38,12 @@ def _child(workdir: Path) -> tuple[list[str], dict[str, str]]:
 
 @pytest.mark.child.with_args(_child)
 def test_the_switch_reaches_warp_and_xla_and_steps_as_the_default(request):
+    # Jitted, as the child: stepped op by op, each step compiles ~90 programs (its Warp calls
+    # are traced afresh at every call), jitted 18 in all.
     env = mwjax.make(["reach-v3"], envs_per_task=1, seed=0)
-    state = env.reset(jax.random.key(0))
+    state, step = jax.jit(env.reset)(jax.random.key(0)), jax.jit(env.step)
     for i in range(3):
-        state = env.step(state, jax.random.uniform(jax.random.key(i), (1, 4), minval=-1, maxval=1))
+        state = step(state, jax.random.uniform(jax.random.key(i), (1, 4), minval=-1, maxval=1))
     run, workdir = children.result(request.node)
     assert run.returncode == 0, run.stderr[-3000:]
     assert "--xla_gpu_deterministic_ops=true" in run.stdout

@@ -32,7 +32,7 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
 
 def pytest_collection_finish(session: pytest.Session) -> None:
     # Children run beside the suite only on the CPU: on a GPU they would hold its memory at once.
-    if _on_gpu() or children.is_child():
+    if _on_gpu() or children.is_child() or session.config.option.collectonly:
         return
     for item in session.items:
         if item.get_closest_marker("child") and not item.get_closest_marker("skip"):

@@ -6,6 +6,7 @@ from __future__ import annotations
 import dataclasses
 import os
 
+import children
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -27,6 +28,19 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
             item.add_marker(pytest.mark.skip(reason="needs a CUDA GPU"))
         if "slow" in item.keywords and not slow_ok:
             item.add_marker(pytest.mark.skip(reason="long check: set MWJAX_SLOW=1 or run on a GPU"))
+
+
+def pytest_collection_finish(session: pytest.Session) -> None:
+    # Children run beside the suite only on the CPU: on a GPU they would hold its memory at once.
+    if _on_gpu() or children.is_child() or session.config.option.collectonly:
+        return
+    for item in session.items:
+        if item.get_closest_marker("child") and not item.get_closest_marker("skip"):
+            children.start(item)
+
+
+def pytest_sessionfinish(session: pytest.Session) -> None:
+    children.stop_all()
 
 
 @dataclasses.dataclass(frozen=True)

@@ -5,11 +5,13 @@ builds steps exactly as the default (the CPU is bit-reproducible either way)."""
 from __future__ import annotations
 
 import os
-import subprocess
 import sys
+from pathlib import Path
 
+import children
 import jax
 import numpy as np
+import pytest
 
 import mwjax
 
@@ -18,9 +20,9 @@ import os, sys, jax, jax.numpy as jnp, numpy as np, warp
 import mwjax
 from mwjax import determinism
 env = mwjax.make(["reach-v3"], envs_per_task=1, seed=0)
-state = env.reset(jax.random.key(0))
+state, step = jax.jit(env.reset)(jax.random.key(0)), jax.jit(env.step)
 for i in range(3):
-    state = env.step(state, jax.random.uniform(jax.random.key(i), (1, 4), minval=-1, maxval=1))
+    state = step(state, jax.random.uniform(jax.random.key(i), (1, 4), minval=-1, maxval=1))
 np.save(sys.argv[1], np.asarray(state.obs))
 modules = list(warp._src.context.user_modules.values())
 assert determinism.enabled() == (os.environ.get("MWJAX_DETERMINISTIC") == "1")
@@ -29,19 +31,20 @@ print(os.environ.get("XLA_FLAGS", ""))
 """
 
 
-def test_the_switch_reaches_warp_and_xla_and_steps_as_the_default(tmp_path):
-    env = mwjax.make(["reach-v3"], envs_per_task=1, seed=0)
-    state = env.reset(jax.random.key(0))
-    for i in range(3):
-        state = env.step(state, jax.random.uniform(jax.random.key(i), (1, 4), minval=-1, maxval=1))
+def _child(workdir: Path) -> tuple[list[str], dict[str, str]]:
     environ = {k: v for k, v in os.environ.items() if k not in ("XLA_FLAGS", "MWJAX_DETERMINISTIC")}
-    out = tmp_path / "obs.npy"
-    run = subprocess.run(
-        [sys.executable, "-c", ROLLOUT, str(out)],
-        env={**environ, "MWJAX_DETERMINISTIC": "1"},
-        capture_output=True,
-        text=True,
-    )
+    return [sys.executable, "-c", ROLLOUT, str(workdir / "obs.npy")], {**environ, "MWJAX_DETERMINISTIC": "1"}
+
+
+@pytest.mark.child.with_args(_child)
+def test_the_switch_reaches_warp_and_xla_and_steps_as_the_default(request):
+    # Jitted, as the child: stepped op by op, each step compiles ~90 programs (its Warp calls
+    # are traced afresh at every call), jitted 18 in all.
+    env = mwjax.make(["reach-v3"], envs_per_task=1, seed=0)
+    state, step = jax.jit(env.reset)(jax.random.key(0)), jax.jit(env.step)
+    for i in range(3):
+        state = step(state, jax.random.uniform(jax.random.key(i), (1, 4), minval=-1, maxval=1))
+    run, workdir = children.result(request.node)
     assert run.returncode == 0, run.stderr[-3000:]
     assert "--xla_gpu_deterministic_ops=true" in run.stdout
-    np.testing.assert_array_equal(np.load(out), np.asarray(state.obs))
+    np.testing.assert_array_equal(np.load(workdir / "obs.npy"), np.asarray(state.obs))

@@ -13,11 +13,11 @@ from __future__ import annotations
 import dataclasses
 import os
 import re
-import subprocess
 import sys
 import time
 from pathlib import Path
 
+import children
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -35,9 +35,7 @@ EPISODE = 5  # steps: the rollouts below autoreset inside
 two_devices = pytest.mark.skipif(jax.device_count() < 2, reason="needs 2 devices (run by the test below)")
 
 
-def test_on_two_host_devices():
-    if os.environ.get(CHILD):
-        pytest.skip("already the child")
+def _child(workdir: Path) -> tuple[list[str], dict[str, str]]:
     flags = os.environ.get("XLA_FLAGS", "")
     env = {
         **os.environ,
@@ -45,14 +43,20 @@ def test_on_two_host_devices():
         "XLA_FLAGS": f"{flags} --xla_force_host_platform_device_count=2 --xla_cpu_max_isa=AVX".strip(),
         "JAX_PLATFORMS": "cpu",
     }
-    cmd = [sys.executable, "-m", "pytest", "-x", "-q", "-p", "no:cacheprovider", __file__]
+    return [sys.executable, "-m", "pytest", "-x", "-q", "-p", "no:cacheprovider", __file__], env
+
+
+@pytest.mark.child.with_args(_child)
+def test_on_two_host_devices(request):
+    if os.environ.get(CHILD):
+        pytest.skip("already the child")
     t0 = time.perf_counter()
-    result = subprocess.run(cmd, env=env, cwd=Path(__file__).parents[1], capture_output=True, text=True)
+    result, _ = children.result(request.node)
     tail = (result.stdout + result.stderr)[-6000:]
     assert result.returncode == 0, tail
     passed = re.search(r"(\d+) passed", result.stdout)
     assert passed and int(passed.group(1)) == 6, tail  # this file's other tests, none skipped
-    print(f"child run: {time.perf_counter() - t0:.0f}s\n{result.stdout[-500:]}")
+    print(f"waited for the child run: {time.perf_counter() - t0:.0f}s\n{result.stdout[-500:]}")
 
 
 def _same(expected, sharded, unsharded_state):

@@ -8,6 +8,7 @@ the goal env test resets a real one."""
 
 from __future__ import annotations
 
+import dataclasses
 import json
 from pathlib import Path
 
@@ -17,6 +18,7 @@ import pytest
 
 import mwjax  # noqa: F401  (registers the ids)
 from mwjax import benchmarks
+from mwjax.config import EnvConfig
 from mwjax.wrappers import gymnasium as adapters
 
 REGISTRY = json.loads((Path(__file__).parent / "fixtures" / "reference" / "registry.json").read_text())
@@ -53,7 +55,12 @@ class FakeEnv:
 
     made: list[dict] = []
 
-    def __init__(self, tasks, envs_per_task, seed=0, split="train", task=None, **kwargs):
+    def __init__(self, tasks, envs_per_task=1, seed=0, split="train", task=None, **kwargs):
+        if isinstance(tasks, EnvConfig):  # `Env(EnvConfig(...))`, as the single-env adapter builds it
+            kwargs = {f.name: getattr(tasks, f.name) for f in dataclasses.fields(tasks)}
+            tasks, envs_per_task, seed, split, task = (
+                kwargs.pop(name) for name in ("tasks", "envs_per_task", "seed", "split", "task")
+            )
         self.args = {"tasks": tasks, "envs_per_task": envs_per_task, "seed": seed, "split": split, **kwargs}
         FakeEnv.made.append(self.args)
         self.task_list = benchmarks.task_names(tasks, split, task)

@@ -62,7 +62,7 @@ def bin_picking(obs: Array) -> Array:
             (xy_dist(o.hand, cube) > 0.02, cube + jnp.array([0.0, 0.0, 0.15])),
             (jnp.abs(o.hand[2] - cube[2]) > 0.01, cube),
             ((xy_dist(o.hand, BIN) > 0.02) & (o.hand[2] < 0.15), o.hand + jnp.array([0.0, 0.0, 0.1])),  # lift
-            (xy_dist(o.hand, BIN) > 0.02, BIN.at[2].set(0.18)),  # carry over the bin
+            (xy_dist(o.hand, BIN) > 0.02, jnp.asarray(BIN).at[2].set(0.18)),  # carry over the bin
         ],
         BIN,
     )

@@ -1,0 +1,168 @@
+"""CPU smoke test of the jitted RL² loop (`examples/train_ml_rl2.py`); the real run is a GPU
+benchmark. A custom ML set of two tasks of one scene (reach to train, push to test), a tiny batch,
+4-step episodes and 2-episode trials keep it short; the envs start in lockstep (their staggered
+starts have their own test) so that every two updates end an episode and every four a trial."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from examples import train_ml_rl2 as rl2
+from mwjax.benchmarks import custom_ml
+
+EPISODE = 4
+CONFIG = rl2.Config(
+    task_set=custom_ml(["reach-v3"], ["push-v3"]),
+    envs_per_task=4,
+    episodes_per_trial=2,
+    max_episode_steps=EPISODE,
+    unroll=EPISODE // 2,
+    staggered_starts=False,
+    minibatches=2,
+    epochs=2,
+    embed=16,
+    hidden=8,
+    adaptation_episodes=1,
+    evaluation_episodes=1,
+    eval_envs_per_task=2,
+    eval_rounds=2,
+)
+
+
+@pytest.fixture(scope="module")
+def trainer():
+    return rl2.Trainer(CONFIG)
+
+
+def _leaves(tree):
+    return [np.array(x) for x in jax.tree.leaves(tree)]
+
+
+def test_updates_are_finite_and_change_the_policy(trainer):
+    carry = trainer.init(jax.random.key(0))
+    before = _leaves(carry.params)
+    for _ in range(2):
+        carry, metrics = trainer.train_chunk(carry, 2)
+        assert np.isfinite(metrics.loss) and np.isfinite(metrics.approx_kl)
+        # Two updates are one episode: every env ended exactly one.
+        np.testing.assert_array_equal(metrics.episodes, [CONFIG.envs_per_task])
+        assert np.all(metrics.successes <= metrics.episodes)
+    after = _leaves(carry.params)
+    assert all(np.all(np.isfinite(x)) for x in after)
+    assert any(not np.array_equal(old, new) for old, new in zip(before, after, strict=True))
+    assert float(carry.norm.obs.count) == 2 * EPISODE * trainer.env.num_envs
+
+
+def test_the_hidden_state_runs_on_within_a_trial_and_resets_between_trials(trainer):
+    carry = trainer.init(jax.random.key(1))
+    goals = np.asarray(carry.env_state.goal_cursor)
+    # Two updates: the trial's first episode ends; its second starts on the same goal.
+    carry, _ = trainer.train_chunk(carry, 2)
+    np.testing.assert_array_equal(np.asarray(carry.trial_step), EPISODE)
+    assert np.all(np.abs(np.asarray(carry.hidden)).sum(axis=1) > 0), "hidden state kept across episodes"
+    assert np.all(np.asarray(carry.first)), "the done flag marks the new episode"
+    assert np.any(np.asarray(carry.prev_reward) != 0), "the previous reward is carried over"
+    np.testing.assert_array_equal(np.asarray(carry.env_state.goal_cursor), goals)
+    # The carried hidden state changes what the policy does at the next episode's first step.
+    x = trainer.inputs(carry.norm, carry.env_state.obs, carry.prev_action, carry.prev_reward, carry.first)
+    _, carried, _ = trainer.core(carry.params, carry.hidden, x)
+    _, fresh, _ = trainer.core(carry.params, jnp.zeros_like(carry.hidden), x)
+    assert not np.allclose(np.asarray(carried), np.asarray(fresh))
+    # Two more: the trial ends; every env moves to its next goal with a zero hidden state.
+    carry, _ = trainer.train_chunk(carry, 2)
+    np.testing.assert_array_equal(np.asarray(carry.trial_step), 0)
+    np.testing.assert_array_equal(np.asarray(carry.hidden), 0.0)
+    np.testing.assert_array_equal(np.asarray(carry.prev_action), 0.0)
+    np.testing.assert_array_equal(np.asarray(carry.prev_reward), 0.0)
+    np.testing.assert_array_equal(np.asarray(carry.env_state.goal_cursor), goals + 1)
+
+
+def test_the_learner_replays_the_rollouts_policy_across_a_trial_boundary(trainer):
+    """The loss re-runs the GRU from the chunk's first hidden state, zeroing it where a trial
+    began: on the rollout's own parameters that gives back the rollout's log-probabilities."""
+    rollout = jax.jit(trainer.rollout)
+    carry = trainer.init(jax.random.key(2))
+    resets = []
+    for _ in range(5):  # the fifth chunk starts the second trial
+        start = carry
+        carry, batch, h0, _, _ = rollout(carry)
+        mean, value = trainer.sequence(carry.params, h0, batch.inputs, batch.reset)
+        log_prob = rl2._log_prob(mean, carry.params.log_std, batch.action)
+        np.testing.assert_allclose(np.asarray(log_prob), np.asarray(batch.log_prob), rtol=1e-5, atol=1e-5)
+        np.testing.assert_allclose(np.asarray(value), np.asarray(batch.value), rtol=1e-5, atol=1e-5)
+        np.testing.assert_array_equal(np.asarray(h0), np.asarray(start.hidden))
+        resets.append(np.asarray(batch.reset))
+        trial_end = np.asarray(batch.trial_end)
+        assert trial_end.all(axis=1).sum() == trial_end.any(axis=1).sum() == (len(resets) == 4)
+    resets = np.stack(resets)  # (chunks, steps, envs)
+    np.testing.assert_array_equal(resets.all(axis=2)[:, 0], [True, False, False, False, True])
+    assert not resets.any(axis=2)[:, 1:].any() and not resets.any(axis=2)[1:4].any()
+
+
+def test_staggered_starts_put_each_env_at_its_own_point_of_a_trial(trainer):
+    carry = trainer.stagger(trainer.init(jax.random.key(7)), jax.random.key(8))
+    start = np.asarray(carry.trial_step)
+    assert len(set(start.tolist())) > 1, "the envs should start at different points"
+    assert np.all(start % CONFIG.unroll == 0)
+    goals = np.asarray(carry.env_state.goal_cursor)
+    rollout = jax.jit(trainer.rollout)
+    trial_ends, firsts, full = [], [], 0
+    for _ in range(trainer.trial_length // CONFIG.unroll):  # one trial's steps
+        carry, batch, _, ended, _ = rollout(carry)
+        trial_ends.append(np.asarray(batch.trial_end))
+        firsts.append(np.asarray(batch.inputs[..., -1]))  # the "episode just ended" flag
+        full += int(np.asarray(ended).sum())
+    trial_ends, firsts = np.concatenate(trial_ends), np.concatenate(firsts)  # (steps, envs)
+    for env, s in enumerate(start):
+        # Its (first, partial) trial ends after the rest of it, and so does the episode then.
+        np.testing.assert_array_equal(np.flatnonzero(trial_ends[:, env]) + 1, [trainer.trial_length - s])
+        # Its first episode is cut to end where the trial's episodes end.
+        into = s % EPISODE
+        episode_starts = np.flatnonzero(firsts[1:, env]) + 1
+        expected = np.arange(EPISODE - into if into else EPISODE, trainer.trial_length, EPISODE)
+        np.testing.assert_array_equal(episode_starts, expected, err_msg=f"env {env}, started at {s}")
+    # Each env moved on to its next goal once; only full-length episodes count toward success.
+    np.testing.assert_array_equal(np.asarray(carry.env_state.goal_cursor), goals + 1)
+    assert full == sum(
+        len(range(EPISODE, trainer.trial_length + 1, EPISODE)) - (s % EPISODE > 0) for s in start
+    )
+
+
+def test_checkpoints_round_trip(trainer, tmp_path):
+    carry = trainer.init(jax.random.key(3))
+    carry, _ = trainer.train_chunk(carry, 2)
+    curve = [{"updates": 2, "loss": 0.5}]
+    rl2.save_checkpoint(tmp_path / "ckpt", carry, 2, curve)
+    restored, updates, restored_curve = rl2.restore_checkpoint(
+        tmp_path / "ckpt", trainer.init(jax.random.key(4))
+    )
+    assert updates == 2 and restored_curve == curve
+    saved = (carry.params, carry.opt_state, carry.norm, jax.random.key_data(carry.key))
+    loaded = (restored.params, restored.opt_state, restored.norm, jax.random.key_data(restored.key))
+    for a, b in zip(_leaves(saved), _leaves(loaded), strict=True):
+        np.testing.assert_array_equal(a, b)
+    # The restored learner trains on.
+    restored, metrics = trainer.train_chunk(restored, 2)
+    assert np.isfinite(metrics.loss)
+
+
+def test_the_meta_test_runs_on_the_test_tasks(trainer):
+    carry = trainer.init(jax.random.key(5))
+    result = trainer.meta_tester()(carry.params, carry.norm, jax.random.key(6))
+    assert trainer.test_env.task_list == ("push-v3",)
+    # One test task; 2 envs x 2 rounds = 4 goals, each with one evaluation episode.
+    assert result.success.shape == (1, CONFIG.eval_envs_per_task * CONFIG.eval_rounds)
+    rate = np.asarray(result.success_rate)
+    assert np.all((rate >= 0) & (rate <= 1))
+    np.testing.assert_allclose(rate, np.asarray(result.success).mean(axis=1))
+
+
+@pytest.mark.slow
+def test_train_resumes_from_its_checkpoint(tmp_path):
+    stem = tmp_path / "run"
+    first = rl2.train(CONFIG, log_every=1, max_updates=1, checkpoint=stem)
+    assert [r["updates"] for r in first["curve"]] == [1]
+    assert 0.0 <= first["meta_test_success"] <= 1.0
+    second = rl2.train(CONFIG, log_every=1, max_updates=2, checkpoint=stem)
+    assert [r["updates"] for r in second["curve"]] == [1, 2]

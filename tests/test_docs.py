@@ -62,3 +62,9 @@ def test_relative_links_resolve(doc):
 def test_readme_test_command_is_the_one_ci_runs():
     ci = (ROOT / ".ci" / "run").read_text().strip().splitlines()[-1]
     assert ci in (ROOT / "README.md").read_text()
+
+
+def test_readme_stays_a_short_user_guide():
+    # The README is user documentation; history and diagnoses belong in docs/.
+    lines = (ROOT / "README.md").read_text().count("\n")
+    assert lines <= 300, f"README.md has {lines} lines; move detail to docs/"

@@ -62,11 +62,10 @@ def result_path(kind: str, name: str, suffix: str, device: str | None = None) ->
 
 
 def tasks_arg(text: str) -> str | list[str]:
-    """A set as `mwjax.make` takes it: a set name, or task names separated by commas (one task
-    alone runs as a one-task set)."""
-    from mwjax.tasks import TASKS
+    """A set as `mwjax.make` takes it (`mwjax.benchmarks.parse_tasks`)."""
+    from mwjax.benchmarks import parse_tasks
 
-    return text.split(",") if "," in text or text in TASKS else text
+    return parse_tasks(text)
 
 
 def rows_arg(text: str) -> int | str:

@@ -13,7 +13,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from mwjax.tasks import get_task
+from mwjax.tasks import TASKS, get_task
 
 N_GOALS = 50
 
@@ -268,6 +268,12 @@ def mt1_goal_variants(names: Sequence[str], seed: int) -> dict[str, np.ndarray]:
     goals the reference's per-task runs (its scripted experts, MT1 training) see. A set such as
     MT50 draws its tasks' variants from one RNG in turn, so only its first task's match these."""
     return {name: goal_variants("MT1", seed, task=name)[name] for name in names}
+
+
+def parse_tasks(text: str) -> str | list[str]:
+    """A set as a command line spells it, as `benchmark` and `mwjax.make` take it: a set name
+    ("MT10", "MT1:<task>") or task names separated by commas (one task alone is a one-task set)."""
+    return text.split(",") if "," in text or text in TASKS else text
 
 
 def _check_tasks(names: tuple[str, ...]) -> tuple[str, ...]:

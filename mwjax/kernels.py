@@ -23,9 +23,13 @@ import os
 import time
 from collections.abc import Sequence
 
-from mwjax import benchmarks, placement
-from mwjax.physics import PhysicsConfig
-from mwjax.tasks import TASKS, get_task
+import mujoco.mjx.third_party.mujoco_warp as mjwarp
+import warp
+
+from mwjax import benchmarks, placement, progress
+from mwjax.models import constraint_rows
+from mwjax.physics import PhysicsConfig, warp_model
+from mwjax.tasks import get_task
 
 Scene = tuple[str, tuple[str, ...]]
 
@@ -46,8 +50,6 @@ def build(
 ) -> tuple[int, float]:
     """Compile the Warp kernel modules of every scene of `tasks` into Warp's cache, `workers`
     processes at a time (default: one per CPU core). Returns (modules built, seconds)."""
-    from mwjax import progress
-
     todo = scenes(tasks)
     workers = max(1, min(workers or os.cpu_count() or 1, len(todo)))
     start = time.perf_counter()
@@ -66,13 +68,6 @@ def _build_scene(scene: str, mocap_bodies: tuple[str, ...], config: PhysicsConfi
     """Step one world of the scene once through MJWarp (its step and kinematics), which compiles
     or loads every module a step of it launches; returns how many it compiled."""
     os.environ["MWJAX_PROGRESS"] = "0"  # the parent reports; workers stay quiet
-    import mujoco.mjx.third_party.mujoco_warp as mjwarp
-    import warp
-
-    from mwjax import progress
-    from mwjax.models import constraint_rows
-    from mwjax.physics import warp_model
-
     model = warp_model(scene, mocap_bodies, config)
     device_model = mjwarp.put_model(model)
     device_model.opt.warn_overflow = 0  # as `mwjax.physics` runs it: the kernel variant without printf
@@ -88,15 +83,8 @@ def main() -> None:
     parser.add_argument("set", help="a set name (MT10, ML45, ...) or task names separated by commas")
     parser.add_argument("--workers", type=int, default=None, help="processes at a time (default: CPU cores)")
     args = parser.parse_args()
-    tasks = args.set.split(",") if "," in args.set or args.set in TASKS else args.set
-    built, seconds = build(tasks, workers=args.workers)
-    print(f"{built} kernel modules built in {seconds:.0f} s; Warp's cache: {_cache_dir()}")
-
-
-def _cache_dir() -> str:
-    import warp
-
-    return str(warp.config.kernel_cache_dir)
+    built, seconds = build(benchmarks.parse_tasks(args.set), workers=args.workers)
+    print(f"{built} kernel modules built in {seconds:.0f} s; Warp's cache: {warp.config.kernel_cache_dir}")
 
 
 if __name__ == "__main__":

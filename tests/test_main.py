@@ -42,7 +42,7 @@ def test_importing_mwjax_claims_no_device():
     # simulate, and leave the one that does without room for Warp.
     code = (
         "import mwjax.env, mwjax.tasks, mwjax.policies, mwjax.benchmarks, mwjax.evaluation\n"
-        "import mwjax.wrappers.gymnasium, mwjax.rendering, mwjax.sharding\n"
+        "import mwjax.wrappers.gymnasium, mwjax.rendering, mwjax.sharding, mwjax.kernels\n"
         "from jax._src import xla_bridge\n"
         "print(xla_bridge.backends_are_initialized())\n"
     )

@@ -4,6 +4,7 @@
     python examples/train_mt_ppo.py --set reach-v3,push-v3 --envs-per-task 2 --unroll 4 \
         --minibatches 2 --updates 2 --eval-episodes 1  # a CPU smoke run
     python examples/train_mt_ppo.py --devices all    # data parallel over every local GPU
+    python examples/train_mt_ppo.py --video videos/  # and a video of the trained policy per task
 
 One `lax.scan` runs `--log-every` PPO updates (each: `--unroll` steps of every env, GAE, several
 epochs of minibatch updates) without leaving the device; the host only prints progress between
@@ -20,7 +21,10 @@ every device rolls out and learns on its own envs, with the gradients, the norma
 advantages' statistics and the metrics averaged or summed over the devices (`pmean`/`psum`).
 `--envs-per-task` is the total over the devices.
 
-Needs the `train` extra (optax); the PNG needs matplotlib.
+`--video DIR` then writes one episode of the trained policy's mean action on each task,
+`DIR/<task>.mp4` from the reference's `corner` camera (rendered by `mwjax.rendering`).
+
+Needs the `train` extra (optax); the PNG needs matplotlib, the videos the `video` extra.
 """
 
 from __future__ import annotations
@@ -45,6 +49,7 @@ import optax
 from jax.sharding import PartitionSpec as P
 
 import mwjax
+from mwjax import rendering
 from mwjax.evaluation import evaluator
 from mwjax.observation import OBS_SIZE
 from mwjax.sharding import AXIS
@@ -533,6 +538,45 @@ class Trainer:
     def evaluator(self, num_episodes: int = 50) -> Any:
         return jax.jit(evaluator(self.env, self.policy, num_episodes, one_hot=True))
 
+    def policy_frames(
+        self,
+        params_and_norm: tuple[Params, Normalizers],
+        key: Array,
+        steps: int | None = None,
+        size: int = 128,
+        camera: str = "corner",
+    ) -> np.ndarray:
+        """Frames of one episode of the policy's mean action on each task (one env per task, a
+        goal drawn from `key`, no autoreset), `(steps, tasks, size, size, 3)` uint8: the
+        rollout and the captures run jitted on device, the images are drawn afterwards."""
+        cfg = self.config
+        env = mwjax.make(
+            self.env.task_list,
+            envs_per_task=1,
+            seed=cfg.seed,
+            reward_version=cfg.reward_version,
+            max_episode_steps=cfg.max_episode_steps,
+            autoreset="disabled",
+        )
+        renderer = rendering.Renderer(env, camera=camera, width=size, height=size)
+        one_hot = jnp.asarray(env.task_one_hot())
+        params, norm = params_and_norm
+
+        def body(state: mwjax.State, _: None) -> tuple[mwjax.State, rendering.Capture]:
+            obs = self._normalize(norm, jnp.concatenate([state.obs, one_hot], axis=-1))
+            action = jnp.clip(self._mean(params, obs[:, None, :]).reshape(-1, 4), -1.0, 1.0)
+            state = env.step(state, action)
+            return state, renderer.capture(state)
+
+        @jax.jit
+        def rollout(key: Array) -> rendering.Capture:
+            state = env.reset(key)
+            _, captures = jax.lax.scan(body, state, None, length=steps or cfg.max_episode_steps)
+            first = jax.tree.map(lambda x: x[None], renderer.capture(state))
+            return jax.tree.map(lambda a, b: jnp.concatenate([a, b]), first, captures)
+
+        return renderer.frames(rollout(key))
+
     @property
     def steps_per_update(self) -> int:
         return self.env.num_envs * self.config.unroll
@@ -545,9 +589,12 @@ def train(
     max_updates: int | None = None,
     eval_episodes: int = 50,
     time_learner: bool = False,
+    video: Path | None = None,
+    video_size: int = 128,
 ) -> dict:
     """Train until `minutes` of wall clock (compile included) or `max_updates`; then evaluate,
-    and with `time_learner` time the learner alone against the last chunk of updates."""
+    with `time_learner` time the learner alone against the last chunk of updates, and with
+    `video` (a folder) write one episode of the trained policy on each task as `<task>.mp4`."""
     start = time.perf_counter()
     trainer = Trainer(config)
     carry = trainer.init(jax.random.key(config.seed))
@@ -594,8 +641,17 @@ def train(
             f"({learner_s / chunk_s:.0%}); simulator and acting the rest",
             flush=True,
         )
+    videos = {}
+    if video is not None:
+        frames = trainer.policy_frames(
+            (carry.params, carry.norm), jax.random.key(config.seed + 2000), size=video_size
+        )
+        for task, task_frames in zip(trainer.env.task_list, frames.swapaxes(0, 1), strict=True):
+            videos[task] = str(rendering.write_video(task_frames, Path(video) / f"{task}.mp4"))
+        print(f"videos of the trained policy -> {video}/", flush=True)
     return {
         **split,
+        **({"videos": videos} if videos else {}),
         "config": dataclasses.asdict(config),
         "curve": curve,
         "train_s": train_s,
@@ -701,6 +757,14 @@ def main() -> None:
     parser.add_argument(
         "--out", default=None, help="result stem (default: benchmarks/results/train/train-...)"
     )
+    parser.add_argument(
+        "--video",
+        type=Path,
+        default=None,
+        help="a folder: one episode of the trained policy per task as <task>.mp4 (the video extra), "
+        "from the corner camera; with several seeds, one sub-folder per seed",
+    )
+    parser.add_argument("--video-size", type=int, default=128, help="video frames' width and height")
     args = parser.parse_args()
 
     runs = []
@@ -720,7 +784,19 @@ def main() -> None:
             seed=seed,
             devices=jax.local_device_count() if args.devices == "all" else int(args.devices),
         )
-        run = train(config, args.minutes, args.log_every, args.updates, args.eval_episodes, args.time_learner)
+        video = None
+        if args.video is not None:
+            video = args.video / f"seed{seed}" if len(args.seeds) > 1 else args.video
+        run = train(
+            config,
+            args.minutes,
+            args.log_every,
+            args.updates,
+            args.eval_episodes,
+            args.time_learner,
+            video,
+            args.video_size,
+        )
         run.pop("params")
         print(
             f"seed {seed}: evaluation success {run['eval_success']:.3f} "

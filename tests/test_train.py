@@ -99,3 +99,17 @@ def test_staggered_starts_cut_each_first_episode_once_then_run_full_length():
         full_length += len(expected) - (cut > 0)
     # Only full-length episodes count toward training success.
     assert counted == full_length
+
+
+def test_policy_frames_show_one_episode_of_each_task(trainer):
+    carry = trainer.init(jax.random.key(6))
+    # The mean action saturated at +1: the hand moves a centimetre per step.
+    w, b = carry.params.policy[-1]
+    params = carry.params._replace(policy=[*carry.params.policy[:-1], (w, b + 2.0)])
+    frames = trainer.policy_frames((params, carry.norm), jax.random.key(7), size=32)
+    # The reset frame and every step of the episode, an image per task.
+    assert frames.shape == (CONFIG.max_episode_steps + 1, 2, 32, 32, 3) and frames.dtype == np.uint8
+    assert all(frames[0, task].std() > 10 for task in range(2))  # a scene, not a blank image
+    assert np.abs(frames[-1].astype(int) - frames[0]).max() > 50  # the arm moved
+    still = trainer.policy_frames((carry.params, carry.norm), jax.random.key(7), size=32)
+    assert not np.array_equal(frames[-1], still[-1])  # the policy's actions drove it

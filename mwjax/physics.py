@@ -27,7 +27,7 @@ from mujoco.mjx.third_party.mujoco_warp import GeomType, OverflowType
 # Which geom-type pairs Warp collides without its convex collider; no public accessor.
 from mujoco.mjx.third_party.mujoco_warp._src.collision_primitive import _PRIMITIVE_COLLISIONS
 
-from mwjax import caches, progress, warp_cpu_graphs, warp_equality, warp_streams
+from mwjax import caches, host_call, progress, warp_cpu_graphs, warp_equality, warp_streams
 from mwjax.models import constraint_rows, load_scene
 
 warp_streams.install()
@@ -52,6 +52,36 @@ _BUFFERS = {
 class PhysicsOverflowWarning(RuntimeWarning):
     """Warp dropped contacts, constraint rows or collider pairs in some env: its physics left the
     reference's from that step on (`info["physics_overflow"]` says which envs and when)."""
+
+
+_OVERFLOW_TARGET = "mwjax_physics_overflow"
+# (scene, buffer, size) already warned about: one warning each per process.
+_warned: set[tuple[str, OverflowType, str]] = set()
+
+
+def _warn_dropped(flags: np.ndarray, attrs: dict[str, str]) -> None:
+    """`PhysicsOverflowWarning`s for a step's per-scene flags (`Physics._warn_on_overflow`)."""
+    scenes = attrs["scenes"].split(",")
+    # Under an outer vmap (e.g. over seeds) the flags arrive with leading batch axes.
+    flags = np.bitwise_or.reduce(flags.reshape(-1, len(scenes)), axis=0)
+    for g, (scene, bits) in enumerate(zip(scenes, flags, strict=True)):
+        for flag, (what, setting) in _BUFFERS.items():
+            size = attrs[setting].split(",")[g]
+            if not bits & flag or (scene, flag, size) in _warned:
+                continue
+            _warned.add((scene, flag, size))
+            # Raised on the host from inside a step: no user frame to point at, hence explicit.
+            warnings.warn_explicit(
+                f"Warp ran out of {what} in scene {scene} ({size} per env) and dropped the "
+                f"excess: those envs no longer follow the reference's physics. Raise "
+                f"mwjax.PhysicsConfig({setting}=...); info['physics_overflow'] flags the envs.",
+                PhysicsOverflowWarning,
+                filename="mwjax.physics",
+                lineno=0,
+            )
+
+
+host_call.register(_OVERFLOW_TARGET, _warn_dropped)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -199,8 +229,6 @@ class Physics:
         # of MT50's ~100 call sites it dominated the step's lowering. Jitted, it is traced once
         # per scene (it makes no Warp call, so sharing its trace shares no captured graph).
         self._made: dict[tuple[int, int], Callable[[], mjx.Data]] = {}
-        # (scene, buffer) pairs already warned about: one warning each per `Physics`.
-        self._warned: set[tuple[str, OverflowType]] = set()
 
     def make_data(self) -> tuple[PhysicsState, ...]:
         """Fresh batched states (the scene's qpos0, poses not yet computed), one per group."""
@@ -280,34 +308,23 @@ class Physics:
 
     def _warn_on_overflow(self, states: tuple[PhysicsState, ...]) -> None:
         # Warp's own warning is a `printf` per world and substep from inside its kernels (turned
-        # off in `_without_console_warnings`); this is one host callback, run only in a step
-        # where some env dropped something.
+        # off in `_without_console_warnings`); this is one call to the host, made only in a step
+        # where some env dropped something, through a named FFI target so that the step stays
+        # in JAX's persistent cache (`mwjax.host_call`).
         flags = jnp.stack([jax.lax.reduce(s.overflow, np.int32(0), jax.lax.bitwise_or, (0,)) for s in states])
         dropped = jnp.any((flags & int(DROPPED)) != 0)
-        jax.lax.cond(dropped, lambda f: jax.debug.callback(self._warn, f), lambda f: None, flags)
-
-    def _warn(self, flags: np.ndarray) -> None:
-        # Under an outer vmap (e.g. over seeds) the flags arrive with leading batch axes.
-        flags = np.bitwise_or.reduce(np.asarray(flags).reshape(-1, len(self.groups)), axis=0)
-        for group, bits in zip(self.groups, flags, strict=True):
-            for flag, (what, setting) in _BUFFERS.items():
-                if not bits & flag or (group.scene, flag) in self._warned:
-                    continue
-                self._warned.add((group.scene, flag))
-                allocated = {
-                    "constraints_per_env": f"{self.constraint_rows(group.scene)} per env",
-                    "ccd_pairs_per_env": f"{self.ccd_pairs(group.scene)} per env",
-                    "contacts_per_env": f"{self.config.contacts_per_env} per env",
-                }[setting]
-                # Raised from a host callback: no user frame to point at, hence explicit.
-                warnings.warn_explicit(
-                    f"Warp ran out of {what} in scene {group.scene} ({allocated}) and dropped the "
-                    f"excess: those envs no longer follow the reference's physics. Raise "
-                    f"mwjax.PhysicsConfig({setting}=...); info['physics_overflow'] flags the envs.",
-                    PhysicsOverflowWarning,
-                    filename="mwjax.physics",
-                    lineno=0,
-                )
+        allocated = {
+            "constraints_per_env": ",".join(str(self.constraint_rows(g.scene)) for g in self.groups),
+            "ccd_pairs_per_env": ",".join(str(self.ccd_pairs(g.scene)) for g in self.groups),
+            "contacts_per_env": ",".join(str(self.config.contacts_per_env) for _ in self.groups),
+        }
+        scenes = ",".join(g.scene for g in self.groups)
+        jax.lax.cond(
+            dropped,
+            lambda f: host_call.call(_OVERFLOW_TARGET, f, scenes=scenes, **allocated),
+            lambda f: None,
+            flags,
+        )
 
     def overflow(self, states: tuple[PhysicsState, ...]) -> jax.Array:
         """Per env (rows in batch order), the `OverflowType` flags Warp raised in the last `step`

@@ -255,6 +255,20 @@ def test_physics_overflow_is_reported_per_env_and_step(capfd):
     assert "overflow" not in capfd.readouterr().out
 
 
+def test_the_step_program_holds_no_python_callback_so_jax_can_cache_it():
+    """JAX writes no program with a Python host callback to its persistent cache, so each process
+    would compile such a step afresh; the overflow warning goes through a named FFI target."""
+    env = mwjax.make(["reach-v3"], envs_per_task=1)
+    state = jax.jit(env.reset)(jax.random.key(0))
+    lowered = jax.jit(env.step).lower(state, jnp.zeros((1, 4)))
+    text = lowered.as_text()
+    assert "mwjax_physics_overflow" in text
+    assert "python_cpu_callback" not in text and "python_gpu_callback" not in text
+    # A Python callback does show in the program text: the check above can fail.
+    probe = jax.jit(lambda x: jax.debug.callback(print, x)).lower(1.0).as_text()
+    assert "python_cpu_callback" in probe
+
+
 @pytest.mark.parametrize("scene", scene_names())
 def test_the_device_scene_without_visual_meshes_steps_exactly_as_the_full_scene(scene):
     full, physics_only = load_scene(scene), load_scene(scene, visual_meshes=False)

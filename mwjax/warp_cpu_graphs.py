@@ -13,19 +13,30 @@ replays the graph recorded on them, and copies the outputs back. The first call 
 eagerly as before (it loads the site's kernel modules); the second records the graph. The replay
 launches the same kernels with the same arguments in the same order, so a rollout is bit for bit
 the eager one (tests/test_warp_cpu_graphs.py). `MWJAX_CPU_GRAPHS=0` turns it off.
+
+Warp records a CPU graph through process-wide state: while one is being recorded, every Warp
+operation of the process, whatever its thread, is seen by (and may be recorded into) it. XLA runs
+the calls on its own threads, asynchronously to Python, and the Python thread does Warp work of
+its own when it builds a model, a render context or data (`mjx.put_model`, `mjx.make_data`, which
+runs while a step is traced): a recording racing with that failed in Warp's copy, on two host
+devices. So `install()` also makes those entry points take the lock Warp's FFI callbacks hold,
+which every replay and recording holds too.
 """
 
 from __future__ import annotations
 
 import contextlib
 import ctypes
+import functools
 import os
 import threading
 import warnings
 from collections.abc import Iterator
 from typing import Any
 
+import mujoco.mjx.warp.io as mjx_warp_io
 import warp
+from mujoco.mjx.warp import mujoco_warp
 from warp._src.jax import ffi
 
 _lock = threading.Lock()
@@ -74,6 +85,9 @@ def install() -> None:
         if _installed:
             return
         _installed = True
+    for name in ("put_model", "make_data", "put_data"):
+        setattr(mujoco_warp, name, _holding_the_ffi_lock(getattr(mujoco_warp, name)))
+    mjx_warp_io._create_context = _holding_the_ffi_lock(mjx_warp_io._create_context)
     original = ffi.FfiCallable.ffi_callback
 
     def ffi_callback(self: ffi.FfiCallable, call_frame: Any, platform: str) -> Any:
@@ -105,6 +119,26 @@ def install() -> None:
         return None
 
     ffi.FfiCallable.ffi_callback = ffi_callback
+
+
+_holder = threading.local()
+
+
+def _holding_the_ffi_lock(func: Any) -> Any:
+    """`func` run under the lock of Warp's FFI callbacks (re-entered freely by its thread)."""
+
+    @functools.wraps(func)
+    def run(*args: Any, **kwargs: Any) -> Any:
+        if getattr(_holder, "holds", False):
+            return func(*args, **kwargs)
+        with ffi._FFI_CALLBACK_LOCK:
+            _holder.holds = True
+            try:
+                return func(*args, **kwargs)
+            finally:
+                _holder.holds = False
+
+    return run
 
 
 def _replay(self: ffi.FfiCallable, site: _Site, call_desc: Any, frame: Any) -> None:

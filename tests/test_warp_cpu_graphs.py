@@ -3,6 +3,8 @@ as Warp's eager calls do: CPU rollouts stay exactly reproducible."""
 
 from __future__ import annotations
 
+import threading
+
 import jax
 import numpy as np
 import pytest
@@ -33,3 +35,21 @@ def test_replayed_steps_equal_eager_steps():
         eager = rollout()
     for ours, theirs in zip(replayed, eager, strict=True):
         np.testing.assert_array_equal(ours, theirs)
+
+
+def test_python_side_warp_work_waits_for_the_ffi_calls():
+    """Building MJWarp data on the Python thread takes the lock that every FFI call (and so every
+    graph recording) holds: a recording sees no Warp work from another thread."""
+    from mujoco import mjx
+    from warp._src.jax import ffi
+
+    from mwjax.models import load_scene
+
+    model = load_scene("sawyer_reach_v3.xml")
+    done = threading.Event()
+    worker = threading.Thread(target=lambda: (mjx.make_data(model, impl="warp"), done.set()))
+    with ffi._FFI_CALLBACK_LOCK:  # as an FFI call on one of XLA's threads holds it
+        worker.start()
+        assert not done.wait(timeout=2.0)
+    assert done.wait(timeout=120.0)
+    worker.join()

@@ -313,18 +313,18 @@ class Physics:
         # in JAX's persistent cache (`mwjax.host_call`).
         flags = jnp.stack([jax.lax.reduce(s.overflow, np.int32(0), jax.lax.bitwise_or, (0,)) for s in states])
         dropped = jnp.any((flags & int(DROPPED)) != 0)
-        allocated = {
+        sizes = self._buffer_sizes
+        jax.lax.cond(dropped, lambda f: host_call.call(_OVERFLOW_TARGET, f, **sizes), lambda f: None, flags)
+
+    @functools.cached_property
+    def _buffer_sizes(self) -> dict[str, str]:
+        """The scenes and their buffer sizes, comma-separated, as `_warn_dropped` reads them."""
+        return {
+            "scenes": ",".join(g.scene for g in self.groups),
             "constraints_per_env": ",".join(str(self.constraint_rows(g.scene)) for g in self.groups),
             "ccd_pairs_per_env": ",".join(str(self.ccd_pairs(g.scene)) for g in self.groups),
             "contacts_per_env": ",".join(str(self.config.contacts_per_env) for _ in self.groups),
         }
-        scenes = ",".join(g.scene for g in self.groups)
-        jax.lax.cond(
-            dropped,
-            lambda f: host_call.call(_OVERFLOW_TARGET, f, scenes=scenes, **allocated),
-            lambda f: None,
-            flags,
-        )
 
     def overflow(self, states: tuple[PhysicsState, ...]) -> jax.Array:
         """Per env (rows in batch order), the `OverflowType` flags Warp raised in the last `step`

@@ -25,7 +25,7 @@ from collections.abc import Callable
 import jax
 import numpy as np
 import warp
-from warp._src.jax import xla_ffi
+from warp._src.jax import ffi, xla_ffi
 
 Handler = Callable[[np.ndarray, dict[str, str]], None]
 
@@ -81,12 +81,15 @@ def _handle(func: Handler, name: str, platform: str, call_frame: object) -> int 
 
 
 def _copy_from_device(frame: object, host: np.ndarray, source: int) -> None:
-    """Copy `host.nbytes` from the device pointer `source`, in order on XLA's stream."""
+    """Copy `host.nbytes` from the device pointer `source`, in order on XLA's stream. Under the
+    lock of Warp's FFI callbacks: with several GPUs, another device's thread may be capturing a
+    CUDA graph, which a synchronizing copy from elsewhere in the process would break."""
     if warp._src.context.runtime is None:
         warp.init()
     core = warp._src.context.runtime.core
     stream = xla_ffi.get_stream_from_callframe(frame)
     device = warp.get_cuda_device(xla_ffi.get_device_ordinal_from_callframe(frame))
-    if not core.wp_memcpy_d2h(device.context, host.ctypes.data, source, host.nbytes, stream):
-        raise RuntimeError("device-to-host copy failed")
-    core.wp_cuda_stream_synchronize(stream)
+    with ffi._FFI_CALLBACK_LOCK:
+        if not core.wp_memcpy_d2h(device.context, host.ctypes.data, source, host.nbytes, stream):
+            raise RuntimeError("device-to-host copy failed")
+        core.wp_cuda_stream_synchronize(stream)

@@ -342,8 +342,11 @@ class Trainer:
         appended, as `mwjax.evaluation.evaluator(..., one_hot=True)` calls a policy: task-major,
         or sharded, device by device (each device's rows task-major)."""
         del key
+        return self._mean_action(params_and_norm, obs, 1 if self.devices is None else len(self.devices))
+
+    def _mean_action(self, params_and_norm: tuple[Params, Normalizers], obs: Array, n: int) -> Array:
+        """`policy` for a batch laid out in `n` device shares, each task-major."""
         params, norm = params_and_norm
-        n = 1 if self.devices is None else len(self.devices)
         # (devices, tasks, rows) -> (tasks, devices * rows): each task's rows together.
         obs = self._normalize(norm, obs).reshape(n, self.n_tasks, -1, obs.shape[-1]).swapaxes(0, 1)
         mean = self._mean(params, obs.reshape(self.n_tasks, -1, obs.shape[-1]))
@@ -560,12 +563,10 @@ class Trainer:
         )
         renderer = rendering.Renderer(env, camera=camera, width=size, height=size)
         one_hot = jnp.asarray(env.task_one_hot())
-        params, norm = params_and_norm
 
         def body(state: mwjax.State, _: None) -> tuple[mwjax.State, rendering.Capture]:
-            obs = self._normalize(norm, jnp.concatenate([state.obs, one_hot], axis=-1))
-            action = jnp.clip(self._mean(params, obs[:, None, :]).reshape(-1, 4), -1.0, 1.0)
-            state = env.step(state, action)
+            obs = jnp.concatenate([state.obs, one_hot], axis=-1)
+            state = env.step(state, self._mean_action(params_and_norm, obs, 1))
             return state, renderer.capture(state)
 
         @jax.jit

@@ -222,12 +222,26 @@ def measure_adapter(benchmark: str, total: int, steps: int) -> dict:
     }
 
 
+def adapter_row(benchmark: str, total: int, steps: int) -> dict:
+    """The adapter's timing, or the error that stopped it (out of device memory, say): recorded in
+    the row, so the throughput rows measured before it are still written."""
+    try:
+        return in_fresh_process(measure_adapter, benchmark, total, steps)
+    except Exception as e:  # the child's exception, or a child that died (BrokenProcessPool)
+        return {
+            "benchmark": benchmark,
+            "num_envs": total,
+            "adapter_steps": steps,
+            "error": f"{type(e).__name__}: {e}",
+        }
+
+
 def measure_reference(python: str, benchmark: str, steps: int) -> dict:
     script = Path(__file__).with_name("reference_throughput.py")
     command = [*shlex.split(python), str(script), "--set", benchmark, "--steps", str(steps)]
     out = subprocess.run([*command, "--envs", str(os.cpu_count())], capture_output=True, text=True)
-    if out.returncode:
-        sys.exit(f"reference run failed for {benchmark}:\n{out.stderr[-3000:]}")
+    if out.returncode:  # recorded, not fatal: the mwjax rows measured before it are kept
+        return {"benchmark": benchmark, "error": f"reference run failed: {out.stderr[-3000:]}"}
     return json.loads(out.stdout.strip().splitlines()[-1])
 
 
@@ -246,7 +260,7 @@ def plot(result: dict, path: Path) -> None:
         if mine:
             ax.plot([r["num_envs"] for r in mine], [r["env_steps_per_s"] for r in mine], "o-", color=color)
             ax.lines[-1].set_label(f"mwjax {name}")
-        adapter = [r for r in result.get("adapter", []) if r["benchmark"] == name]
+        adapter = [r for r in result.get("adapter", []) if r["benchmark"] == name and "error" not in r]
         if adapter:
             ax.plot(
                 [r["num_envs"] for r in adapter],
@@ -256,7 +270,7 @@ def plot(result: dict, path: Path) -> None:
                 label=f"mwjax {name}, Gymnasium adapter (NumPy)",
             )
         for ref in result.get("reference", []):
-            if ref["benchmark"] == name:
+            if ref["benchmark"] == name and "error" not in ref:
                 ax.axhline(
                     ref["env_steps_per_s"],
                     color=color,
@@ -330,18 +344,25 @@ def main() -> None:
                 flush=True,
             )
             if args.adapter:
-                timing = in_fresh_process(
-                    measure_adapter, benchmark, total - total % n_tasks, args.adapter_steps
-                )
+                timing = adapter_row(benchmark, total - total % n_tasks, args.adapter_steps)
                 adapter.append(timing)
                 print(
-                    f"{'':>20} {'':>7}       adapter: {timing['adapter_numpy_env_steps_per_s']:>12,.0f} "
-                    f"env steps/s with NumPy, {timing['adapter_jax_env_steps_per_s']:,.0f} with jax arrays",
+                    f"{'':>20} {'':>7}       adapter: "
+                    + (
+                        f"FAILED: {timing['error']}"
+                        if "error" in timing
+                        else f"{timing['adapter_numpy_env_steps_per_s']:>12,.0f} env steps/s with NumPy, "
+                        f"{timing['adapter_jax_env_steps_per_s']:,.0f} with jax arrays"
+                    ),
                     flush=True,
                 )
     if args.vs_reference:
         for benchmark in args.sets:
             ref = measure_reference(args.vs_reference, benchmark, args.reference_steps)
+            if "error" in ref:
+                reference.append(ref)
+                print(f"{benchmark:>20} reference: {ref['error']}", flush=True)
+                continue
             ours = [
                 r["env_steps_per_s"] for r in rows if r["benchmark"] == benchmark and r["env_steps_per_s"]
             ]
@@ -356,7 +377,7 @@ def main() -> None:
             )
     first = rows[0].pop("provenance")
     for row in rows[1:] + adapter:
-        row.pop("provenance")
+        row.pop("provenance", None)
     result = {
         **first,
         "command": shlex.join(["python", *sys.argv]),

@@ -8,6 +8,7 @@ import sys
 from pathlib import Path
 
 import pytest
+import warp
 
 import mwjax
 from mwjax import kernels
@@ -20,6 +21,40 @@ ROOT = Path(__file__).parents[1]
 def test_scenes_are_the_physics_groups_that_make_builds():
     env = mwjax.make("MT10", envs_per_task=1)
     assert kernels.scenes("MT10") == [(g.scene, g.mocap_bodies) for g in env.physics.groups]
+
+
+def test_a_completed_build_is_recorded_and_not_repeated(tmp_path, monkeypatch):
+    """A build of the same scenes and settings into the same Warp cache returns at once; other
+    scenes, other settings or `force` build again."""
+    monkeypatch.setattr(warp.config, "kernel_cache_dir", str(tmp_path))
+    calls = []
+
+    def build_all(todo, config, workers):
+        calls.append((list(todo), config))
+        return 7
+
+    monkeypatch.setattr(kernels, "_build_all", build_all)
+    assert kernels.build(["push-v3"])[0] == 7
+    assert kernels.build(["push-v3"])[0] == 0
+    assert len(calls) == 1
+    assert kernels.build(["push-v3"], force=True)[0] == 7
+    assert kernels.build(["push-v3"], mwjax.PhysicsConfig(contacts_per_env=32))[0] == 7
+    assert kernels.build(["pick-place-v3"])[0] == 7
+    assert len(calls) == 4
+    records = sorted(path.name for path in tmp_path.iterdir())
+    assert len(records) == 3 and all(name.startswith("mwjax-built-") for name in records)
+
+
+def test_a_failed_build_leaves_no_record(tmp_path, monkeypatch):
+    monkeypatch.setattr(warp.config, "kernel_cache_dir", str(tmp_path))
+
+    def build_all(todo, config, workers):
+        raise RuntimeError("a worker failed")
+
+    monkeypatch.setattr(kernels, "_build_all", build_all)
+    with pytest.raises(RuntimeError):
+        kernels.build(["push-v3"])
+    assert not list(tmp_path.iterdir())
 
 
 def test_a_meta_learning_set_covers_both_splits():
@@ -37,6 +72,8 @@ def test_after_a_build_the_first_step_compiles_no_scene_module(tmp_path):
     build = [sys.executable, "-m", "mwjax.kernels", "push-v3,pick-place-v3", "--workers", "2"]
     built = subprocess.run(build, cwd=ROOT, env=env, capture_output=True, text=True, check=True)
     assert int(built.stdout.split()[0]) > 10, built.stdout
+    again = subprocess.run(build, cwd=ROOT, env=env, capture_output=True, text=True, check=True)
+    assert int(again.stdout.split()[0]) == 0, again.stdout  # recorded: no processes, nothing built
     step = (
         "import jax, mwjax\n"
         "from mwjax import progress\n"

@@ -110,7 +110,11 @@ class PhysicsConfig:
     # Who captures the CUDA graphs of a Warp step: None is MJX's choice ("warp" on GPU: Warp
     # captures each call and replays it for the same buffer addresses), "jax" lets XLA record the
     # kernels into its own command buffers, "none" launches them one by one. A name of
-    # `warp.JaxCallableGraphMode`, lower case.
+    # `warp.JaxCallableGraphMode`, lower case. "warp" keeps a graph, with the scratch it allocated,
+    # per call and set of buffer addresses (up to 32 per Warp callable), so a program whose
+    # buffers move between calls holds several sets: at 131k+ envs that ran out of GPU memory.
+    # "warp_staged_ex" keeps one per call, captured against staging buffers (bounded memory, about
+    # half the speed; docs/performance.md).
     graph_mode: str | None = None
     # "box_box": Warp's port of MuJoCo C's `mjc_BoxBox` (C's collider, see `warp_model`);
     # "convex": Warp's general convex collider (GJK/EPA), MJX-Warp's own default.

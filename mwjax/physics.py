@@ -112,7 +112,8 @@ class PhysicsConfig:
     # kernels into its own command buffers, "none" launches them one by one. A name of
     # `warp.JaxCallableGraphMode`, lower case. "warp" keeps a graph, with the scratch it allocated,
     # per call and set of buffer addresses (up to 32 per Warp callable), so a program whose
-    # buffers move between calls holds several sets: at 131k+ envs that ran out of GPU memory.
+    # buffers move between calls can hold several sets (the likely reason MT10 at 131k envs ran
+    # out of GPU memory at a compiled rollout's second call).
     # "warp_staged_ex" keeps one per call, captured against staging buffers (bounded memory, about
     # half the speed; docs/performance.md).
     graph_mode: str | None = None

@@ -2,10 +2,14 @@
 
     python tools/warp_memory_probe.py MT1:pick-place-v3 131070 --steps 500
     python tools/warp_memory_probe.py MT1:pick-place-v3 131070 --ccd-pairs 4
+    python tools/warp_memory_probe.py MT10 131070 --steps 500 --carry-flags   # as throughput.py
 
 Builds one set at a batch, runs three random-action rollouts of `--steps` steps (the first one
 includes Warp's kernel builds and graph captures), and prints per rollout its time, the card's
-memory in use (nvidia-smi), Warp's memory-pool use and JAX's peak. At the end it prints the
+memory in use (nvidia-smi), Warp's memory-pool use, JAX's peak and how many CUDA graphs Warp's
+callables keep: in MJX's default graph mode one per call and set of buffer addresses, each with
+the scratch it allocated, so a count that grows from rollout to rollout shows buffers that moved
+(`--no-donate`, `--carry-flags` and `--graph-mode` vary what might move them). At the end it prints the
 shapes of the scratch arrays that Warp's convex collider (`collision_convex.convex_narrowphase`)
 allocated and how often: the first dimension is the scene's `naccdmax` (envs x slots). It counts
 them by wrapping `wp.empty` in that module alone. A diagnostic: it neither checks overflow nor
@@ -22,8 +26,10 @@ import time
 from typing import Any
 
 import jax
+import jax.numpy as jnp
 import mujoco.mjx.third_party.mujoco_warp._src.collision_convex as collision_convex
 import warp as wp
+from warp._src.jax import ffi
 
 import mwjax
 from mwjax.benchmarks import task_names
@@ -51,41 +57,64 @@ def card_memory_mib() -> str:
         return "n/a (no nvidia-smi)"
 
 
+def warp_graphs() -> str:
+    """CUDA graphs Warp's JAX callables keep (their `captures`, keyed by call and buffer addresses
+    in MJX's default graph mode), over the callables that keep any: `total (callables)`."""
+    kept = [len(c.captures) for c in ffi._FFI_CALLABLE_REGISTRY.values() if c.captures]
+    return f"{sum(kept)} ({len(kept)} callables)"
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("set", help="a set name, e.g. MT10 or MT1:pick-place-v3")
     parser.add_argument("envs", type=int, help="total envs")
     parser.add_argument("--steps", type=int, default=20)
     parser.add_argument("--ccd-pairs", type=int, default=None, help="ccd_pairs_per_env (default: per scene)")
+    parser.add_argument("--graph-mode", default=None, help="PhysicsConfig.graph_mode (default: MJX's)")
+    parser.add_argument("--no-donate", action="store_true", help="do not donate the state to the rollout")
+    parser.add_argument(
+        "--carry-flags",
+        action="store_true",
+        help="carry the overflow flags and a success count through the scan, as throughput.py does",
+    )
     args = parser.parse_args()
     collision_convex.wp = _CountingWarp()
 
-    pairs = {} if args.ccd_pairs is None else {"ccd_pairs_per_env": args.ccd_pairs}
-    physics = mwjax.PhysicsConfig(**pairs)
+    settings = {"ccd_pairs_per_env": args.ccd_pairs, "graph_mode": args.graph_mode}
+    physics = mwjax.PhysicsConfig(**{k: v for k, v in settings.items() if v is not None})
     env = mwjax.make(args.set, envs_per_task=args.envs // len(task_names(args.set)), physics=physics)
     slots = {g.scene: env.physics.ccd_pairs(g.scene) for g in env.physics.groups}
     print(f"{args.set}: {env.num_envs} envs, convex-collider slots per env {slots}", flush=True)
 
     def rollout(state: mwjax.State, key: jax.Array) -> mwjax.State:
-        def body(state: mwjax.State, key: jax.Array) -> tuple[mwjax.State, None]:
+        def body(carry: tuple, key: jax.Array) -> tuple[tuple, None]:
+            state, flags, successes = carry
             action = jax.random.uniform(key, (env.num_envs, 4), minval=-1.0, maxval=1.0)
-            return env.step(state, action), None
+            state = env.step(state, action)
+            if args.carry_flags:
+                flags = flags | state.info["physics_overflow"]
+                successes = successes + state.info["success"].sum()
+            return (state, flags, successes), None
 
-        return jax.lax.scan(body, state, jax.random.split(key, args.steps))[0]
+        init = (state, jnp.zeros(env.num_envs, jnp.int32), jnp.zeros((), jnp.int32))
+        (state, flags, successes), _ = jax.lax.scan(body, init, jax.random.split(key, args.steps))
+        return (state, flags, successes) if args.carry_flags else state
 
     state = jax.jit(env.reset)(jax.random.key(0))
-    run = jax.jit(rollout, donate_argnums=0)
+    run = jax.jit(rollout, donate_argnums=() if args.no_donate else 0)
     device = wp.get_device()
     for i in range(3):
         t0 = time.perf_counter()
-        state = jax.block_until_ready(run(state, jax.random.key(i)))
+        out = jax.block_until_ready(run(state, jax.random.key(i)))
+        state = out[0] if args.carry_flags else out
         seconds = time.perf_counter() - t0
         stats = jax.devices()[0].memory_stats() or {}
         pool = wp.get_mempool_used_mem_current(device) / 2**30 if device.is_cuda else 0.0
         print(
             f"rollout {i}: {seconds:.1f} s ({env.num_envs * args.steps / seconds:,.0f} env steps/s), "
             f"card {card_memory_mib()}, Warp pool {pool:.2f} GiB, "
-            f"JAX peak {stats.get('peak_bytes_in_use', 0) / 2**30:.2f} GiB",
+            f"JAX peak {stats.get('peak_bytes_in_use', 0) / 2**30:.2f} GiB, "
+            f"Warp graphs kept {warp_graphs()}",
             flush=True,
         )
     print("convex-collider scratch shapes (calls):", dict(SHAPES.most_common(8)))

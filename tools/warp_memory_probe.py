@@ -86,27 +86,28 @@ def main() -> None:
     slots = {g.scene: env.physics.ccd_pairs(g.scene) for g in env.physics.groups}
     print(f"{args.set}: {env.num_envs} envs, convex-collider slots per env {slots}", flush=True)
 
-    def rollout(state: mwjax.State, key: jax.Array) -> mwjax.State:
+    def rollout(state: mwjax.State, key: jax.Array) -> tuple:
+        """The state, and with `--carry-flags` the overflow flags and success count; without it
+        the scan carries the state alone, as the probe always did."""
+
         def body(carry: tuple, key: jax.Array) -> tuple[tuple, None]:
-            state, flags, successes = carry
+            state, *extra = carry
             action = jax.random.uniform(key, (env.num_envs, 4), minval=-1.0, maxval=1.0)
             state = env.step(state, action)
-            if args.carry_flags:
-                flags = flags | state.info["physics_overflow"]
-                successes = successes + state.info["success"].sum()
-            return (state, flags, successes), None
+            if extra:
+                flags, successes = extra
+                extra = [flags | state.info["physics_overflow"], successes + state.info["success"].sum()]
+            return (state, *extra), None
 
-        init = (state, jnp.zeros(env.num_envs, jnp.int32), jnp.zeros((), jnp.int32))
-        (state, flags, successes), _ = jax.lax.scan(body, init, jax.random.split(key, args.steps))
-        return (state, flags, successes) if args.carry_flags else state
+        flags = (jnp.zeros(env.num_envs, jnp.int32), jnp.zeros((), jnp.int32)) if args.carry_flags else ()
+        return jax.lax.scan(body, (state, *flags), jax.random.split(key, args.steps))[0]
 
     state = jax.jit(env.reset)(jax.random.key(0))
     run = jax.jit(rollout, donate_argnums=() if args.no_donate else 0)
     device = wp.get_device()
     for i in range(3):
         t0 = time.perf_counter()
-        out = jax.block_until_ready(run(state, jax.random.key(i)))
-        state = out[0] if args.carry_flags else out
+        state = jax.block_until_ready(run(state, jax.random.key(i)))[0]
         seconds = time.perf_counter() - t0
         stats = jax.devices()[0].memory_stats() or {}
         pool = wp.get_mempool_used_mem_current(device) / 2**30 if device.is_cuda else 0.0

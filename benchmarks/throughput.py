@@ -346,16 +346,14 @@ def main() -> None:
             if args.adapter:
                 timing = adapter_row(benchmark, total - total % n_tasks, args.adapter_steps)
                 adapter.append(timing)
-                print(
-                    f"{'':>20} {'':>7}       adapter: "
-                    + (
-                        f"FAILED: {timing['error']}"
-                        if "error" in timing
-                        else f"{timing['adapter_numpy_env_steps_per_s']:>12,.0f} env steps/s with NumPy, "
+                if "error" in timing:
+                    text = f"FAILED: {timing['error']}"
+                else:
+                    text = (
+                        f"{timing['adapter_numpy_env_steps_per_s']:>12,.0f} env steps/s with NumPy, "
                         f"{timing['adapter_jax_env_steps_per_s']:,.0f} with jax arrays"
-                    ),
-                    flush=True,
-                )
+                    )
+                print(f"{'':>20} {'':>7}       adapter: {text}", flush=True)
     if args.vs_reference:
         for benchmark in args.sets:
             ref = measure_reference(args.vs_reference, benchmark, args.reference_steps)

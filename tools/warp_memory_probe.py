@@ -9,12 +9,13 @@ includes Warp's kernel builds and graph captures), and prints per rollout its ti
 memory in use (nvidia-smi), Warp's memory-pool use, JAX's peak and how many CUDA graphs Warp's
 callables keep: in MJX's default graph mode one per call and set of buffer addresses, each with
 the scratch it allocated, so a count that grows from rollout to rollout shows buffers that moved
-(`--no-donate`, `--carry-flags` and `--graph-mode` vary what might move them). At the end it prints the
-shapes of the scratch arrays that Warp's convex collider (`collision_convex.convex_narrowphase`)
-allocated and how often: the first dimension is the scene's `naccdmax` (envs x slots). It counts
-them by wrapping `wp.empty` in that module alone. A diagnostic: it neither checks overflow nor
-follows the throughput protocol (`benchmarks/throughput.py` does). Run one case per process: Warp
-keeps each captured graph's memory for the life of the process.
+(`--no-donate`, `--carry-flags` and `--graph-mode` vary what might move them). mwjax keeps one
+per call site (`mwjax.warp_graphs`); `MWJAX_WARP_GRAPHS_PER_SITE=0` restores Warp's own policy.
+At the end it prints the shapes of the scratch arrays that Warp's convex collider
+(`collision_convex.convex_narrowphase`) allocated and how often: the first dimension is the
+scene's `naccdmax` (envs x slots). It counts them by wrapping `wp.empty` in that module alone.
+A diagnostic: it neither checks overflow nor follows the throughput protocol
+(`benchmarks/throughput.py` does). Run one case per process.
 """
 
 from __future__ import annotations
@@ -33,6 +34,7 @@ from warp._src.jax import ffi
 
 import mwjax
 from mwjax.benchmarks import task_names
+from mwjax.warp_graphs import kept_graphs
 
 SHAPES: collections.Counter[str] = collections.Counter()
 
@@ -58,10 +60,11 @@ def card_memory_mib() -> str:
 
 
 def warp_graphs() -> str:
-    """CUDA graphs Warp's JAX callables keep (their `captures`, keyed by call and buffer addresses
-    in MJX's default graph mode), over the callables that keep any: `total (callables)`."""
-    kept = [len(c.captures) for c in ffi._FFI_CALLABLE_REGISTRY.values() if c.captures]
-    return f"{sum(kept)} ({len(kept)} callables)"
+    """CUDA graphs Warp's JAX callables keep, over the callables that keep any and the call
+    sites they were traced at: `graphs (callables, sites)`."""
+    graphs, callables = kept_graphs()
+    sites = sum(len(c.call_descriptors) for c in ffi._FFI_CALLABLE_REGISTRY.values() if c.captures)
+    return f"{graphs} ({callables} callables, {sites} sites)"
 
 
 def main() -> None:

@@ -1,0 +1,98 @@
+"""Keeps one captured CUDA graph per MJX-Warp call site instead of up to 32 per callable (Warp 1.18).
+
+In MJX's default graph mode ("warp"), Warp's FFI callback captures each call into a CUDA graph,
+keyed by the call site (`call_id`) and the addresses of all its buffers, replays it when the same
+site comes with the same addresses, and keeps up to 32 graphs per Warp callable (least recently
+used first out). Each graph keeps the scratch memory its call allocated while it was captured:
+the convex collider's GJK/EPA buffers are hundreds of MB per scene at 100k+ envs. When XLA hands
+a site other buffers (another execution of the program, a donated state that moved, a program
+compiled anew), Warp captures again and keeps the old graph as well, so a large batch's memory
+grows by its whole set of graphs, up to 32 times over, and runs out in Warp's allocator.
+
+`install()` bounds it per site: a site keeps the graphs of its last `per_site()` sets of buffer
+addresses (default 1, `MWJAX_WARP_GRAPHS_PER_SITE`), and an older set's graph, with its scratch,
+is released before the new one is captured. Warp's own per-callable limit is lifted, since it
+would evict graphs of sites in use when a callable has more than 32 sites (MT50 steps 50
+scenes). `MWJAX_WARP_GRAPHS_PER_SITE=0` leaves Warp's policy as it is. The CPU is not concerned:
+Warp captures nothing there (`mwjax.warp_cpu_graphs` records its own, one per site).
+"""
+
+from __future__ import annotations
+
+import collections
+import ctypes
+import os
+import threading
+from typing import Any
+
+from warp._src.jax import ffi
+
+_lock = threading.Lock()
+_installed = False
+
+
+def per_site() -> int:
+    """Graphs each call site keeps (`MWJAX_WARP_GRAPHS_PER_SITE`; 0: Warp's own policy)."""
+    value = os.environ.get("MWJAX_WARP_GRAPHS_PER_SITE", "1")
+    if not value.isdigit():
+        raise ValueError(f"MWJAX_WARP_GRAPHS_PER_SITE must be a non-negative integer, not {value!r}")
+    return int(value)
+
+
+def admit(kept: collections.deque[int], key: int, limit: int) -> list[int]:
+    """Record that a site's call uses the buffer set `key`, most recent last in `kept`, and
+    return the keys it no longer keeps (their graphs are to be released): at most `limit`."""
+    if key in kept:
+        kept.remove(key)
+        kept.append(key)
+        return []
+    kept.append(key)
+    return [kept.popleft() for _ in range(len(kept) - limit)]
+
+
+def install() -> None:
+    """Patch Warp's FFI callback once per process (idempotent; a no-op with a limit of 0)."""
+    global _installed
+    limit = per_site()
+    with _lock:
+        if _installed or limit == 0:
+            return
+        _installed = True
+    original = ffi.FfiCallable.ffi_callback
+
+    def ffi_callback(self: ffi.FfiCallable, call_frame: Any, platform: str) -> Any:
+        frame = call_frame.contents
+        if (
+            platform != ffi._FFI_PLATFORM_CUDA
+            or self.graph_mode != ffi.JaxCallableGraphMode.WARP
+            or frame.extension_start
+        ):
+            return original(self, call_frame, platform)
+        # The key Warp's callback computes for this call (same fields, same order).
+        attr = ctypes.cast(frame.attrs.attrs[0], ctypes.POINTER(ffi.XLA_FFI_Scalar)).contents
+        call_id = ctypes.cast(attr.value, ctypes.POINTER(ctypes.c_int64)).contents.value
+        inputs = ctypes.cast(frame.args.args, ctypes.POINTER(ctypes.POINTER(ffi.XLA_FFI_Buffer)))
+        outputs = ctypes.cast(frame.rets.rets, ctypes.POINTER(ctypes.POINTER(ffi.XLA_FFI_Buffer)))
+        key = hash(
+            (
+                ffi.get_device_ordinal_from_callframe(frame),
+                call_id,
+                *(inputs[i].contents.data for i in self.array_input_indices),
+                *(outputs[i].contents.data for i in self.array_output_indices),
+            )
+        )
+        with ffi._FFI_CALLBACK_LOCK:
+            self.graph_cache_max = None
+            desc = self.call_descriptors[call_id]
+            kept = desc.__dict__.setdefault("mwjax_graph_keys", collections.deque())
+            for old in admit(kept, key, limit):
+                self.captures.pop(old, None)
+        return original(self, call_frame, platform)
+
+    ffi.FfiCallable.ffi_callback = ffi_callback
+
+
+def kept_graphs() -> tuple[int, int]:
+    """(CUDA graphs Warp's callables keep, callables that keep any): what `install()` bounds."""
+    kept = [len(c.captures) for c in ffi._FFI_CALLABLE_REGISTRY.values() if c.captures]
+    return sum(kept), len(kept)

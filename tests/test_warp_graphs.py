@@ -1,0 +1,47 @@
+"""One captured CUDA graph per MJX-Warp call site (`mwjax.warp_graphs`)."""
+
+import collections
+
+import jax
+import pytest
+
+import mwjax
+from mwjax import warp_graphs
+
+
+def test_a_site_keeps_its_latest_buffer_sets():
+    kept: collections.deque[int] = collections.deque()
+    assert warp_graphs.admit(kept, 1, limit=1) == []
+    assert warp_graphs.admit(kept, 1, limit=1) == []
+    assert warp_graphs.admit(kept, 2, limit=1) == [1]
+    assert list(kept) == [2]
+    kept.clear()
+    for key in (1, 2):
+        assert warp_graphs.admit(kept, key, limit=2) == []
+    assert warp_graphs.admit(kept, 1, limit=2) == []  # 1 is now the most recent
+    assert warp_graphs.admit(kept, 3, limit=2) == [2]
+    assert list(kept) == [1, 3]
+
+
+def test_the_limit_is_read_from_the_environment(monkeypatch):
+    monkeypatch.setenv("MWJAX_WARP_GRAPHS_PER_SITE", "2")
+    assert warp_graphs.per_site() == 2
+    monkeypatch.setenv("MWJAX_WARP_GRAPHS_PER_SITE", "many")
+    with pytest.raises(ValueError, match="MWJAX_WARP_GRAPHS_PER_SITE"):
+        warp_graphs.per_site()
+
+
+@pytest.mark.gpu
+def test_steps_from_states_at_new_addresses_keep_one_graph_per_site():
+    """Without donation every step's state lies at new addresses, so Warp captures each site
+    again at every call; the graphs it keeps must stay at one set, not grow with the calls."""
+    env = mwjax.make("MT1:reach-v3", envs_per_task=64)
+    step = jax.jit(env.step)
+    state = jax.jit(env.reset)(jax.random.key(0))
+    action = jax.numpy.zeros((env.num_envs, 4))
+    state = jax.block_until_ready(step(state, action))
+    after_one = warp_graphs.kept_graphs()
+    for _ in range(4):
+        state = jax.block_until_ready(step(state, action))
+    assert warp_graphs.kept_graphs() == after_one
+    assert after_one[0] > 0

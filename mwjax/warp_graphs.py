@@ -1,4 +1,4 @@
-"""Keeps one captured CUDA graph per MJX-Warp call site instead of up to 32 per callable (Warp 1.18).
+"""Optionally bounds the CUDA graphs Warp keeps per MJX-Warp call site (Warp 1.18: 32 per callable).
 
 In MJX's default graph mode ("warp"), Warp's FFI callback captures each call into a CUDA graph,
 keyed by the call site (`call_id`) and the addresses of all its buffers, replays it when the same
@@ -7,14 +7,17 @@ used first out). Each graph keeps the scratch memory its call allocated while it
 the convex collider's GJK/EPA buffers are hundreds of MB per scene at 100k+ envs. When XLA hands
 a site other buffers (another execution of the program, a donated state that moved, a program
 compiled anew), Warp captures again and keeps the old graph as well, so a large batch's memory
-grows by its whole set of graphs, up to 32 times over, and runs out in Warp's allocator.
+can grow by a whole set of graphs at a time, up to 32 per callable.
 
-`install()` bounds it per site: a site keeps the graphs of its last `per_site()` sets of buffer
-addresses (default 1, `MWJAX_WARP_GRAPHS_PER_SITE`), and an older set's graph, with its scratch,
-is released before the new one is captured. Warp's own per-callable limit is lifted, since it
-would evict graphs of sites in use when a callable has more than 32 sites (MT50 steps 50
-scenes). `MWJAX_WARP_GRAPHS_PER_SITE=0` leaves Warp's policy as it is. The CPU is not concerned:
-Warp captures nothing there (`mwjax.warp_cpu_graphs` records its own, one per site).
+`install()` can bound it per site: with `MWJAX_WARP_GRAPHS_PER_SITE=K` (K >= 1) a site keeps
+the graphs of its last K sets of buffer addresses, an older set's graph, with its scratch, is
+released before the new one is captured, and Warp's per-callable limit is lifted (it would evict
+graphs of sites in use when a callable has more than 32 sites). Off by default (0: Warp's own
+policy), because one site may legitimately see several sets in one execution: measured on an
+H200 (MT10, 32,760 envs, 500-step rollouts), Warp's policy kept 64 graphs for 12 sites, the same
+after every rollout, and K=1 made each such call capture anew, 51,671 instead of 521,719 env
+steps/s (`benchmarks/results/profile/warp-memory-probe-MT10-32760-500steps-per-site-*`). The
+CPU is not concerned: Warp captures nothing there (`mwjax.warp_cpu_graphs` records its own).
 """
 
 from __future__ import annotations
@@ -33,7 +36,7 @@ _installed = False
 
 def per_site() -> int:
     """Graphs each call site keeps (`MWJAX_WARP_GRAPHS_PER_SITE`; 0: Warp's own policy)."""
-    value = os.environ.get("MWJAX_WARP_GRAPHS_PER_SITE", "1")
+    value = os.environ.get("MWJAX_WARP_GRAPHS_PER_SITE", "0")
     if not value.isdigit():
         raise ValueError(f"MWJAX_WARP_GRAPHS_PER_SITE must be a non-negative integer, not {value!r}")
     return int(value)

@@ -1,11 +1,12 @@
 """One captured CUDA graph per MJX-Warp call site (`mwjax.warp_graphs`)."""
 
 import collections
+import os
+import subprocess
+import sys
 
-import jax
 import pytest
 
-import mwjax
 from mwjax import warp_graphs
 
 
@@ -24,6 +25,8 @@ def test_a_site_keeps_its_latest_buffer_sets():
 
 
 def test_the_limit_is_read_from_the_environment(monkeypatch):
+    monkeypatch.delenv("MWJAX_WARP_GRAPHS_PER_SITE", raising=False)
+    assert warp_graphs.per_site() == 0  # Warp's own policy unless asked
     monkeypatch.setenv("MWJAX_WARP_GRAPHS_PER_SITE", "2")
     assert warp_graphs.per_site() == 2
     monkeypatch.setenv("MWJAX_WARP_GRAPHS_PER_SITE", "many")
@@ -31,17 +34,28 @@ def test_the_limit_is_read_from_the_environment(monkeypatch):
         warp_graphs.per_site()
 
 
+_PROBE = """
+import jax
+import mwjax
+from mwjax import warp_graphs
+env = mwjax.make("MT1:reach-v3", envs_per_task=64)
+step = jax.jit(env.step)
+state = jax.jit(env.reset)(jax.random.key(0))
+action = jax.numpy.zeros((env.num_envs, 4))
+state = jax.block_until_ready(step(state, action))
+after_one = warp_graphs.kept_graphs()
+for _ in range(4):
+    state = jax.block_until_ready(step(state, action))
+print(after_one[0], warp_graphs.kept_graphs()[0])
+"""
+
+
 @pytest.mark.gpu
 def test_steps_from_states_at_new_addresses_keep_one_graph_per_site():
-    """Without donation every step's state lies at new addresses, so Warp captures each site
-    again at every call; the graphs it keeps must stay at one set, not grow with the calls."""
-    env = mwjax.make("MT1:reach-v3", envs_per_task=64)
-    step = jax.jit(env.step)
-    state = jax.jit(env.reset)(jax.random.key(0))
-    action = jax.numpy.zeros((env.num_envs, 4))
-    state = jax.block_until_ready(step(state, action))
-    after_one = warp_graphs.kept_graphs()
-    for _ in range(4):
-        state = jax.block_until_ready(step(state, action))
-    assert warp_graphs.kept_graphs() == after_one
-    assert after_one[0] > 0
+    """With `MWJAX_WARP_GRAPHS_PER_SITE=1` and no donation, every step's state lies at new
+    addresses, so Warp captures each site again at every call; the graphs it keeps must stay at
+    one set, not grow with the calls. In a child: the bound is process-wide."""
+    env = dict(os.environ, MWJAX_WARP_GRAPHS_PER_SITE="1")
+    out = subprocess.run([sys.executable, "-c", _PROBE], env=env, capture_output=True, text=True, check=True)
+    after_one, after_five = map(int, out.stdout.split()[-2:])
+    assert 0 < after_one == after_five

@@ -9,8 +9,8 @@ includes Warp's kernel builds and graph captures), and prints per rollout its ti
 memory in use (nvidia-smi), Warp's memory-pool use, JAX's peak and how many CUDA graphs Warp's
 callables keep: in MJX's default graph mode one per call and set of buffer addresses, each with
 the scratch it allocated, so a count that grows from rollout to rollout shows buffers that moved
-(`--no-donate`, `--carry-flags` and `--graph-mode` vary what might move them). mwjax keeps one
-per call site (`mwjax.warp_graphs`); `MWJAX_WARP_GRAPHS_PER_SITE=0` restores Warp's own policy.
+(`--no-donate`, `--carry-flags` and `--graph-mode` vary what might move them). Warp's policy is
+the default; `MWJAX_WARP_GRAPHS_PER_SITE=K` bounds each call site to K (`mwjax.warp_graphs`).
 At the end it prints the shapes of the scratch arrays that Warp's convex collider
 (`collision_convex.convex_narrowphase`) allocated and how often: the first dimension is the
 scene's `naccdmax` (envs x slots). It counts them by wrapping `wp.empty` in that module alone.

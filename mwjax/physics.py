@@ -112,9 +112,7 @@ class PhysicsConfig:
     # captures each call and replays it for the same buffer addresses), "jax" lets XLA record the
     # kernels into its own command buffers, "none" launches them one by one. A name of
     # `warp.JaxCallableGraphMode`, lower case. "warp" keeps a graph, with the scratch it allocated,
-    # per call and set of buffer addresses (up to 32 per Warp callable), so a program whose
-    # buffers move between calls can hold several sets (the likely reason MT10 at 131k envs ran
-    # out of GPU memory at a compiled rollout's second call).
+    # per call site and set of buffer addresses (up to 32 per Warp callable; `mwjax.warp_graphs`).
     # "warp_staged_ex" keeps one per call, captured against staging buffers (bounded memory, about
     # half the speed; docs/performance.md).
     graph_mode: str | None = None
@@ -300,11 +298,18 @@ class Physics:
         """`step` for group `g` alone (a batch of any size). `fresh_poses=False` leaves the poses
         as MuJoCo C's `mj_step` does, computed before the last substep's integration."""
         step = self._substep[g]
-        data = self.data(g, state)
-        rows = jnp.zeros_like(state.rows_needed)
-        for _ in range(self.config.substeps):
+
+        # A device loop rather than five traced calls: the loop body hands Warp the same buffers
+        # at every substep, so Warp keeps one captured graph (and its scratch) per call site
+        # instead of one per substep, and XLA compiles one body (docs/performance.md).
+        def substep(_: int, carry: tuple[mjx.Data, jax.Array]) -> tuple[mjx.Data, jax.Array]:
+            data, rows = carry
             data = step(data)
-            rows = jnp.maximum(rows, data._impl.nefc)
+            return data, jnp.maximum(rows, data._impl.nefc)
+
+        data, rows = jax.lax.fori_loop(
+            0, self.config.substeps, substep, (self.data(g, state), jnp.zeros_like(state.rows_needed))
+        )
         return _carried(self._kinematics[g](data) if fresh_poses else data, rows)
 
     def constraint_rows_needed(self, states: tuple[PhysicsState, ...]) -> jax.Array:

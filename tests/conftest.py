@@ -22,6 +22,8 @@ def _on_gpu() -> bool:
 
 
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    # Tests that wait for a child go last, so the parent works on the rest while the child runs.
+    items.sort(key=lambda item: any(item.get_closest_marker(mark) for mark in ("late", "child")))
     slow_ok = os.environ.get("MWJAX_SLOW") == "1" or _on_gpu()
     for item in items:
         if "gpu" in item.keywords and not _on_gpu():
@@ -61,6 +63,11 @@ class AllTasks:
 
 @pytest.fixture(scope="session")
 def all_tasks() -> AllTasks:
+    return make_all_tasks()
+
+
+def make_all_tasks() -> AllTasks:
+    """The `all_tasks` env, also for a child process (tests/test_episodes.py)."""
     ported = [task for task in recorded_tasks() if task in TASKS]
     goals = {
         task: np.concatenate([load(task)["rand_vec"], load_episodes(EPISODES, task)["rand_vec"]])

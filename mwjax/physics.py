@@ -300,8 +300,9 @@ class Physics:
         step = self._substep[g]
 
         # A device loop rather than five traced calls: the loop body hands Warp the same buffers
-        # at every substep, so Warp keeps one captured graph (and its scratch) per call site
-        # instead of one per substep, and XLA compiles one body (docs/performance.md).
+        # at every substep, and Warp captures a graph (with its scratch) per call site and set of
+        # buffer addresses, so a site needs one graph instead of one per substep; XLA also
+        # compiles one body instead of five (docs/performance.md).
         def substep(_: int, carry: tuple[mjx.Data, jax.Array]) -> tuple[mjx.Data, jax.Array]:
             data, rows = carry
             data = step(data)

@@ -27,10 +27,20 @@ from mujoco.mjx.third_party.mujoco_warp import GeomType, OverflowType
 # Which geom-type pairs Warp collides without its convex collider; no public accessor.
 from mujoco.mjx.third_party.mujoco_warp._src.collision_primitive import _PRIMITIVE_COLLISIONS
 
-from mwjax import caches, host_call, progress, warp_cpu_graphs, warp_equality, warp_graphs, warp_streams
+from mwjax import (
+    caches,
+    host_call,
+    progress,
+    warp_ast,
+    warp_cpu_graphs,
+    warp_equality,
+    warp_graphs,
+    warp_streams,
+)
 from mwjax.models import constraint_rows, load_scene
 
 warp_streams.install()
+warp_ast.install()
 warp_cpu_graphs.install()
 warp_graphs.install()
 warp_equality.install()

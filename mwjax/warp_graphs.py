@@ -85,9 +85,11 @@ def install() -> None:
             )
         )
         with ffi._FFI_CALLBACK_LOCK:
-            self.graph_cache_max = None
             desc = self.call_descriptors[call_id]
-            kept = desc.__dict__.setdefault("mwjax_graph_keys", collections.deque())
+            kept = desc.__dict__.get("mwjax_graph_keys")
+            if kept is None:  # the site's first call: the per-site bound replaces Warp's
+                kept = desc.mwjax_graph_keys = collections.deque()
+                self.graph_cache_max = None
             for old in admit(kept, key, limit):
                 self.captures.pop(old, None)
         return original(self, call_frame, platform)

@@ -69,8 +69,8 @@ def _free_run_child(workdir: Path) -> tuple[list[str], dict[str, str]]:
 
 @pytest.fixture(scope="module")
 def free_run(request):
-    anchor = [item for item in request.session.items if item.get_closest_marker("child") is not None]
-    anchor = [item for item in anchor if item.module is request.module]
+    module = request.module
+    anchor = [i for i in request.session.items if i.module is module and i.get_closest_marker("child")]
     if jax.default_backend() != "cpu" or not anchor:
         return episode_free_run(request.getfixturevalue("all_tasks"), TASK_NAMES)
     run, workdir = children.result(anchor[0])

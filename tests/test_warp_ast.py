@@ -1,5 +1,6 @@
 """Warp's kernel-source parsing, serialized across threads (`mwjax.warp_ast`)."""
 
+import ast
 import gc
 import threading
 import time
@@ -48,4 +49,4 @@ def test_parses_on_several_threads_at_once_do_not_fail():
     finally:
         gc.set_threshold(*threshold)
     assert errors == []
-    assert warp_codegen.ast.Name is __import__("ast").Name  # the rest is the standard module
+    assert warp_codegen.ast.Name is ast.Name  # the rest is the standard module

@@ -1,4 +1,4 @@
-"""One captured CUDA graph per MJX-Warp call site (`mwjax.warp_graphs`)."""
+"""The opt-in bound on the CUDA graphs Warp keeps per MJX-Warp call site (`mwjax.warp_graphs`)."""
 
 import collections
 import os

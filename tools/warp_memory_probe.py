@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import argparse
 import collections
+import os
 import subprocess
 import time
 from typing import Any
@@ -52,7 +53,9 @@ class _CountingWarp:
 
 
 def card_memory_mib() -> str:
-    query = ["nvidia-smi", "--query-gpu=memory.used", "--format=csv,noheader"]
+    """Memory in use on the GPU this process runs on (nvidia-smi numbers every GPU of the host)."""
+    card = os.environ.get("CUDA_VISIBLE_DEVICES", "0").split(",")[0] or "0"
+    query = ["nvidia-smi", "--query-gpu=memory.used", "--format=csv,noheader", "-i", card]
     try:
         return subprocess.run(query, capture_output=True, text=True).stdout.strip()
     except OSError:

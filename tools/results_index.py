@@ -90,12 +90,18 @@ def _throughput_rows(data: dict) -> list[dict]:
     return rows
 
 
+def _rate(row: dict) -> str:
+    if row["env_steps_per_s"] is None:
+        return f"refused ({row.get('refused') or 'no figure'})"
+    return f"{row['env_steps_per_s']:,.0f}"
+
+
 def _what(files: list[Path], data: dict) -> str:
     if rows := _throughput_rows(data):
         parts = []
         for benchmark in dict.fromkeys(r["benchmark"] for r in rows):
             mine = [r for r in rows if r["benchmark"] == benchmark]
-            rates = ", ".join(f"{r['num_envs']:,} envs {r['env_steps_per_s']:,.0f}" for r in mine)
+            rates = ", ".join(f"{r['num_envs']:,} envs {_rate(r)}" for r in mine)
             parts.append(
                 f"{benchmark}{' physics only' if mine[0].get('mode') == 'physics only' else ''}: {rates}"
             )

@@ -19,6 +19,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from mwjax import benchmarks, goals, placement
+from mwjax.batching import cond_any
 from mwjax.config import EnvConfig
 from mwjax.contracts import Frame, Kinematics, Placement, StepInputs
 from mwjax.observation import Observation
@@ -271,18 +272,13 @@ class Env:
         )
         done = terminated | truncated
         if self.autoreset == "same_step":
-            return jax.lax.cond(
-                jnp.any(done),
-                lambda s: self._autoreset(s, done),
-                lambda s: self._with_final(s, done),
-                stepped,
-            )
+            return cond_any(done, self._autoreset, self._with_final, stepped)
         stepped = self._with_final(stepped, done)
         if self.autoreset == "disabled":
             return stepped
         # NEXT_STEP: an env whose episode ended at the previous call starts a new one instead.
         ended = state.terminated | state.truncated
-        return jax.lax.cond(jnp.any(ended), lambda s: self._restart(s, ended), lambda s: s, stepped)
+        return cond_any(ended, self._restart, lambda s, _: s, stepped)
 
     def _row_keys(self, key: Array) -> Array:
         """One key per env, split from a reset's key (a sharded env's part on one device,

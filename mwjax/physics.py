@@ -37,6 +37,7 @@ from mwjax import (
     warp_graphs,
     warp_streams,
 )
+from mwjax.batching import cond_any
 from mwjax.models import constraint_rows, load_scene
 
 warp_streams.install()
@@ -334,9 +335,14 @@ class Physics:
         # where some env dropped something, through a named FFI target so that the step stays
         # in JAX's persistent cache (`mwjax.host_call`).
         flags = jnp.stack([jax.lax.reduce(s.overflow, np.int32(0), jax.lax.bitwise_or, (0,)) for s in states])
-        dropped = jnp.any((flags & int(DROPPED)) != 0)
+        dropped = (flags & int(DROPPED)) != 0
         sizes = self._buffer_sizes
-        jax.lax.cond(dropped, lambda f: host_call.call(_OVERFLOW_TARGET, f, **sizes), lambda f: None, flags)
+
+        def warn(f: jax.Array, _: jax.Array) -> jax.Array:
+            host_call.call(_OVERFLOW_TARGET, f, **sizes)
+            return f
+
+        cond_any(dropped, warn, lambda f, _: f, flags)
 
     @functools.cached_property
     def _buffer_sizes(self) -> dict[str, str]:
@@ -357,7 +363,10 @@ class Physics:
 
     def kinematics(self, states: tuple[PhysicsState, ...]) -> tuple[PhysicsState, ...]:
         """The poses of `states` computed from their qpos (and mocap bodies)."""
-        return tuple(_carried(self._kinematics[g](self.data(g, state))) for g, state in enumerate(states))
+        return tuple(
+            _carried(self._kinematics[g](self.data(g, state)), state.rows_needed)
+            for g, state in enumerate(states)
+        )
 
 
 def warp_model(scene: str, mocap_bodies: tuple[str, ...], config: PhysicsConfig) -> mujoco.MjModel:

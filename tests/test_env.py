@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import json
 import re
@@ -90,6 +91,29 @@ def test_truncation_and_autoreset(env, episode):
     np.testing.assert_array_equal(at_horizon.steps, 0)
     assert not np.asarray(after.truncated).any()
     np.testing.assert_allclose(after.obs[:, 18:36], at_horizon.obs[:, :18], atol=1e-7)
+
+
+def test_step_under_an_outer_vmap_is_each_instance_stepped_alone(env, compiled):
+    """`jax.vmap(env.step)` (over seeds, say), in a step where one instance's episodes end and the
+    other's go on: each instance is bit for bit the plain step of its own state."""
+    _, step = compiled
+    states = jax.jit(jax.vmap(env.reset))(jax.random.split(jax.random.key(5), 2))
+    states = dataclasses.replace(states, steps=states.steps.at[0].set(HORIZON - 1))
+    actions = jax.random.uniform(jax.random.key(6), (2, env.num_envs, 4), minval=-1, maxval=1)
+    stepped = jax.jit(jax.vmap(env.step))(states, actions)
+    assert np.asarray(stepped.truncated[0]).all() and not np.asarray(stepped.truncated[1]).any()
+    for i in range(2):
+        alone = step(jax.tree.map(lambda x, i=i: x[i], states), actions[i])
+        mine = jax.tree.map(lambda x, i=i: x[i], stepped)
+        leaves = jax.tree_util.tree_leaves_with_path(_key_data(mine))
+        for (path, a), b in zip(leaves, jax.tree.leaves(_key_data(alone)), strict=True):
+            np.testing.assert_array_equal(a, b, err_msg=f"instance {i}{jax.tree_util.keystr(path)}")
+
+
+def _key_data(tree):
+    return jax.tree.map(
+        lambda x: jax.random.key_data(x) if jnp.issubdtype(x.dtype, jax.dtypes.prng_key) else x, tree
+    )
 
 
 def test_default_horizon_is_reference():

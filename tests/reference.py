@@ -122,6 +122,21 @@ def load_episodes(directory: Path, task: str) -> dict:
     return arrays
 
 
+def engine_reset_gap(task: str, rand_vec: np.ndarray) -> list[dict[str, float]] | None:
+    """Per reset, how far the engine-only baseline's own reset (the reference's code on MuJoCo
+    3.17) lands from the recorded one: `qpos/qvel/obs_max_abs_diff`, for the goals `rand_vec`
+    if the baseline's recording is of those goals, else None."""
+    if not (BASELINE / f"{task}.npz").exists() or not (EPISODES / f"{task}.npz").exists():
+        return None
+    episodes, baseline = load_episodes(EPISODES, task), load_episodes(BASELINE, task)
+    recorded = episodes["rand_vec"]
+    if baseline["meta"]["fixture_seed"] != episodes["meta"]["seed"] or len(recorded) < len(rand_vec):
+        return None
+    if not np.array_equal(recorded[: len(rand_vec)], rand_vec):
+        return None
+    return baseline["meta"]["own_reset_vs_fixture"][: len(rand_vec)]
+
+
 def episode_free_run(all_tasks, tasks: Sequence[str]) -> dict[str, dict[str, np.ndarray]]:
     """mwjax's own episodes for the recorded ones in `EPISODES`: reset to each recorded goal, then
     the recorded actions, open loop. Per task: reset qpos/qvel/obs (R, ...) and per-step V2 reward

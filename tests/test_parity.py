@@ -13,7 +13,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
-from reference import load, recorded_tasks, replay_recorded_states
+from reference import engine_reset_gap, load, recorded_tasks, replay_recorded_states
 
 import mwjax
 from mwjax.benchmarks import MT10, sample_goal_variants
@@ -80,8 +80,10 @@ def test_every_ported_task_is_recorded_and_covers_mt10():
 # Given-state rewards use mwjax's own episode constants, except where a reset deviates
 # (RESET_DEVIATIONS) and the reward reads the settled hand: with its own `init_tcp`, door-unlock's
 # V2 reward matches on 55% of seed 0's steps (one goal's settling finger strikes the lock, which
-# moves the settled tcp by 7 mm). Its reward kernel is checked with the reference's `init_tcp`.
-REFERENCE_INIT_TCP = ["door-unlock-v3"]
+# moves the settled tcp by 7 mm), handle-press's and handle-pull's on 75% of seed 23's (the arm
+# settles 1.3e-2 rad away in one goal, MuJoCo C 3.17 1.1e-2). Their reward kernels are checked
+# with the reference's `init_tcp`; the whole-episode returns (test_episodes) use mwjax's own.
+REFERENCE_INIT_TCP = ["door-unlock-v3", "handle-press-v3", "handle-pull-v3"]
 
 
 @pytest.fixture(scope="module")
@@ -182,6 +184,14 @@ CHAOTIC_RESET = {
 CHAOTIC_OBJECT_OBS = {"peg-unplug-side-v3": np.r_[4:11], "disassemble-v3": np.r_[4:11]}
 
 
+# A reset that runs physics settles through contacts, so MuJoCo 3.17 may land elsewhere than 3.3.0
+# on some goals whatever the implementation. Where the engine-only baseline recorded the same
+# goals (`engine_reset_gap`), each reset may also differ by what the baseline's own reset on 3.17
+# differs, with this headroom: mwjax (float32 MJX-Warp, 3.17) is a second sample of the same
+# contact-driven spread (largest ratio measured, seed 23's handle-press: 1.17).
+ENGINE_GAP_HEADROOM = 1.5
+
+
 def assert_reset_matches(task: str, qpos: np.ndarray, qvel: np.ndarray, obs: np.ndarray, ref: dict) -> None:
     """mwjax's reset state and observation `(episodes, ...)` against a recording's."""
     spec = TASKS[task]
@@ -190,14 +200,22 @@ def assert_reset_matches(task: str, qpos: np.ndarray, qvel: np.ndarray, obs: np.
     # Positions are observed as they are: a reset that runs physics is held to its qpos bound.
     obs_tol = max(STALE_RESET_OBS.get(task, OBS_TOL), qpos_tol)
     qpos_tol, qvel_tol, obs_tol = RESET_DEVIATIONS.get(task, (qpos_tol, qvel_tol, obs_tol))
+    gaps = engine_reset_gap(task, ref["rand_vec"]) if physics_in_reset else None
     ours = {"qpos": qpos, "qvel": qvel, "obs": obs}
     theirs = {"qpos": ref["reset_qpos"], "qvel": ref["reset_qvel"], "obs": ref["reset_obs"]}
     for name, columns in CHAOTIC_RESET.get(task, {}).items():
         ours[name], theirs[name] = np.delete(ours[name], columns, -1), np.delete(theirs[name], columns, -1)
-    np.testing.assert_allclose(ours["qpos"], theirs["qpos"], atol=qpos_tol)
-    np.testing.assert_allclose(ours["qvel"], theirs["qvel"], atol=qvel_tol, rtol=1e-6)
-    err = np.abs(ours["obs"] - theirs["obs"]).max()
-    assert err < obs_tol, f"reset obs error {err:.3g}"
+    for name, atol, rtol in (("qpos", qpos_tol, 1e-7), ("qvel", qvel_tol, 1e-6), ("obs", obs_tol, 0.0)):
+        bound = np.full(len(ours[name]), atol)
+        if gaps is not None:
+            engine = np.array([gap[f"{name}_max_abs_diff"] for gap in gaps])
+            bound = np.maximum(bound, ENGINE_GAP_HEADROOM * engine)
+        excess = np.abs(ours[name] - theirs[name]) - bound[:, None] - rtol * np.abs(theirs[name])
+        reset, column = np.unravel_index(np.argmax(excess), excess.shape)
+        assert excess.max() <= 0, (
+            f"reset {reset}, {name}[{column}]: {ours[name][reset, column]:.6g} against the recorded "
+            f"{theirs[name][reset, column]:.6g}, bound {bound[reset]:.3g}"
+        )
 
 
 @pytest.mark.parametrize("task", PORTED)

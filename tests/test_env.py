@@ -96,8 +96,8 @@ def test_truncation_and_autoreset(env, episode):
 def test_step_under_an_outer_vmap_is_each_instance_stepped_alone(env, compiled):
     """`jax.vmap(env.step)` (over seeds, say), in a step where one instance's episodes end and the
     other's go on: each instance is bit for bit the plain step of its own state."""
-    _, step = compiled
-    states = jax.jit(jax.vmap(env.reset))(jax.random.split(jax.random.key(5), 2))
+    reset, step = compiled
+    states = jax.tree.map(lambda *x: jnp.stack(x), *(reset(jax.random.key(k)) for k in (5, 6)))
     states = dataclasses.replace(states, steps=states.steps.at[0].set(HORIZON - 1))
     actions = jax.random.uniform(jax.random.key(6), (2, env.num_envs, 4), minval=-1, maxval=1)
     stepped = jax.jit(jax.vmap(env.step))(states, actions)

@@ -14,9 +14,10 @@ the graphs of its last K sets of buffer addresses, an older set's graph, with it
 released before the new one is captured, and Warp's per-callable limit is lifted (it would evict
 graphs of sites in use when a callable has more than 32 sites). Off by default (0: Warp's own
 policy), because one site may legitimately see several sets in one execution: measured on an
-H200 (MT10, 32,760 envs, 500-step rollouts), Warp's policy kept 64 graphs for 12 sites, the same
-after every rollout, and K=1 made each such call capture anew, 51,671 instead of 521,719 env
-steps/s (`benchmarks/results/profile/warp-memory-probe-MT10-32760-500steps-per-site-*`). The
+H200 (MT10, 32,760 envs, 500-step rollouts, substeps as a device loop), Warp's policy kept 32
+graphs for 12 sites, the same after every rollout, and K=1 made most calls capture anew, 306,646
+instead of 494,003 env steps/s
+(`benchmarks/results/profile/warp-memory-probe-MT10-32760-500steps-per-site-*-0bcc205-*`). The
 CPU is not concerned: Warp captures nothing there (`mwjax.warp_cpu_graphs` records its own).
 """
 

@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 from mujoco import mjx
 from mujoco.mjx.third_party.mujoco_warp import OverflowType
+from states import assert_same_state
 
 import mwjax
 from mwjax import benchmarks, policies
@@ -104,16 +105,7 @@ def test_step_under_an_outer_vmap_is_each_instance_stepped_alone(env, compiled):
     assert np.asarray(stepped.truncated[0]).all() and not np.asarray(stepped.truncated[1]).any()
     for i in range(2):
         alone = step(jax.tree.map(lambda x, i=i: x[i], states), actions[i])
-        mine = jax.tree.map(lambda x, i=i: x[i], stepped)
-        leaves = jax.tree_util.tree_leaves_with_path(_key_data(mine))
-        for (path, a), b in zip(leaves, jax.tree.leaves(_key_data(alone)), strict=True):
-            np.testing.assert_array_equal(a, b, err_msg=f"instance {i}{jax.tree_util.keystr(path)}")
-
-
-def _key_data(tree):
-    return jax.tree.map(
-        lambda x: jax.random.key_data(x) if jnp.issubdtype(x.dtype, jax.dtypes.prng_key) else x, tree
-    )
+        assert_same_state(alone, jax.tree.map(lambda x, i=i: x[i], stepped), f"instance {i}")
 
 
 def test_default_horizon_is_reference():

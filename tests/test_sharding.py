@@ -22,6 +22,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from states import assert_same_state
 
 import mwjax
 from mwjax import evaluation, policies
@@ -61,17 +62,7 @@ def test_on_two_host_devices(request):
 
 def _same(expected, sharded, unsharded_state):
     """Every leaf of `expected` (unsharded env) equals the sharded state's, bit for bit."""
-    state = sharded.unsharded(unsharded_state)
-    paths = jax.tree_util.tree_leaves_with_path(expected)
-    leaves = jax.tree.leaves(state)
-    assert len(paths) == len(leaves)
-    for (path, a), b in zip(paths, leaves, strict=True):
-        if jnp.issubdtype(a.dtype, jax.dtypes.prng_key):
-            a, b = jax.random.key_data(a), jax.random.key_data(b)
-        a, b = np.asarray(a), np.asarray(b)
-        assert a.shape == b.shape, jax.tree_util.keystr(path)
-        differ = np.flatnonzero((a != b).reshape(len(a), -1).any(axis=1)) if a.ndim else []
-        assert np.array_equal(a, b), f"{jax.tree_util.keystr(path)} differs in rows {differ}"
+    assert_same_state(expected, sharded.unsharded(unsharded_state))
 
 
 def _split_over(array, devices, rows):

@@ -4,7 +4,8 @@ Each process builds a task set, runs `--steps` env steps of seeded uniform rando
 whole episodes, autoreset included) and fingerprints every step on device: the bits of the
 observations, rewards, success flags and every scene's qpos and qvel, mixed into a 32-bit integer
 per step with integer arithmetic only (whose sum does not depend on reduction order). The host
-hashes the per-step fingerprints (SHA-256). `--runs` processes run one after another; the script
+hashes the per-step fingerprints (SHA-256). `--runs` processes run one after another, or with
+`--parallel` side by side, one GPU each (GPUs 0, 1, ...: the same model on one host); the script
 reports whether all hashes agree, the first step where they part, and each run's rollout time, so
 that `--deterministic` (`MWJAX_DETERMINISTIC=1` in the children: `mwjax.determinism`) against the
 default gives both the answer and its cost.
@@ -40,13 +41,22 @@ def fingerprint(arrays: list) -> object:
     return total
 
 
+def progress(text: str) -> None:
+    """A progress line on stderr (the parent keeps stdout for the result)."""
+    print(f"[{os.environ.get('CUDA_VISIBLE_DEVICES', 'run')}] {text}", file=sys.stderr, flush=True)
+
+
 def child(args: argparse.Namespace) -> None:
     import jax
     import jax.numpy as jnp
-    from common import tasks_arg
+    from common import build_kernels, tasks_arg
 
     import mwjax
 
+    if args.build_only:  # Warp's modules into its cache, side by side, before the runs load them
+        seconds = build_kernels(tasks_arg(args.set))
+        progress(f"physics kernels ready in {seconds or 0:.0f} s")
+        return
     env = mwjax.make(tasks_arg(args.set), envs_per_task=args.envs_per_task, seed=args.seed)
 
     def rollout(state: mwjax.State, key: jax.Array) -> jax.Array:
@@ -58,9 +68,13 @@ def child(args: argparse.Namespace) -> None:
 
         return jax.lax.scan(body, state, jax.random.split(key, args.steps))[1]
 
+    t0 = time.perf_counter()
     state = jax.jit(env.reset)(jax.random.key(args.seed))
     run = jax.jit(rollout).lower(state, jax.random.key(args.seed + 1)).compile()
+    progress(f"{env.num_envs} envs: reset and rollout compiled in {time.perf_counter() - t0:.0f} s")
+    t0 = time.perf_counter()
     jax.block_until_ready(run(state, jax.random.key(args.seed + 1)))  # Warp's first-call work
+    progress(f"first rollout (Warp's kernel loads and graph captures) in {time.perf_counter() - t0:.0f} s")
     t0 = time.perf_counter()
     prints = np.asarray(jax.block_until_ready(run(state, jax.random.key(args.seed + 1))))
     seconds = time.perf_counter() - t0
@@ -86,9 +100,11 @@ def main() -> None:
     parser.add_argument("--steps", type=int, default=500)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--runs", type=int, default=2, help="processes, one after another")
+    parser.add_argument("--parallel", action="store_true", help="the runs side by side, one GPU each")
     parser.add_argument("--deterministic", action="store_true", help="MWJAX_DETERMINISTIC=1 in the runs")
     parser.add_argument("--out", default=None, help="JSON path for the summary")
     parser.add_argument("--child", action="store_true", help=argparse.SUPPRESS)
+    parser.add_argument("--build-only", action="store_true", help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.child:
         child(args)
@@ -104,12 +120,31 @@ def main() -> None:
         str(args.envs_per_task),
     ]
     command += ["--steps", str(args.steps), "--seed", str(args.seed)]
+    # stderr (progress, Warp's messages) passes through; stdout carries each run's result.
+    if subprocess.run([*command, "--build-only"], env=environ).returncode:
+        sys.exit("building the physics kernels failed; its messages are above")
     runs = []
-    for i in range(args.runs):
-        out = subprocess.run(command, env=environ, capture_output=True, text=True)
-        if out.returncode:
-            sys.exit(f"run {i} failed:\n{out.stderr[-3000:]}")
-        runs.append(json.loads(out.stdout.strip().splitlines()[-1]))
+    visible = os.environ.get("CUDA_VISIBLE_DEVICES")
+    gpus = visible.split(",") if visible else [str(i) for i in range(args.runs)]
+    if args.parallel:
+        if len(gpus) < args.runs:
+            sys.exit(f"--parallel needs a GPU per run: {args.runs} runs, CUDA_VISIBLE_DEVICES={visible}")
+        procs = [
+            subprocess.Popen(
+                command, env=dict(environ, CUDA_VISIBLE_DEVICES=gpus[i]), stdout=subprocess.PIPE, text=True
+            )
+            for i in range(args.runs)
+        ]
+        outputs = [(p.communicate()[0], p.returncode) for p in procs]
+    else:
+        outputs = []
+        for _ in range(args.runs):
+            done = subprocess.run(command, env=environ, stdout=subprocess.PIPE, text=True)
+            outputs.append((done.stdout, done.returncode))
+    for i, (stdout, code) in enumerate(outputs):
+        if code:
+            sys.exit(f"run {i} failed (exit {code}); its messages are above")
+        runs.append(json.loads(stdout.strip().splitlines()[-1]) | {"gpu": gpus[i] if args.parallel else None})
         print(
             f"run {i}: {runs[-1]['sha256'][:16]}  {runs[-1]['env_steps_per_s']:,.0f} env steps/s", flush=True
         )
@@ -118,6 +153,7 @@ def main() -> None:
     summary = {
         "set": args.set,
         "deterministic": args.deterministic,
+        "parallel": args.parallel,
         "identical": bool(parted.size == 0),
         "first_differing_step": int(parted[0]) if parted.size else None,
         "runs": runs,

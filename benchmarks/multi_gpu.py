@@ -14,11 +14,12 @@ device*, so each GPU steps the same batch and perfect scaling doubles the rate w
 `--strong` makes `--envs-per-task` the total instead. One device runs the plain single-device
 env (`devices=None`), the others `mwjax.make(..., devices=the first n GPUs)`.
 
-Each device count runs in its own process (a clean GPU, its own Warp graphs). When the counts fit
-on disjoint GPUs (1 + 2 + 4 = 7 of 8) the processes start together, so their compiles overlap,
-and take turns (a file lock) for the warm-up and timed rollouts; otherwise they run one after
-another on GPUs 0..n-1. Results: a table, and a JSON file (device names, count, batch, commit,
-date, command) in `benchmarks/results/`, whose last stdout line is the summary row.
+Each device count runs in its own process (a clean GPU, its own Warp graphs). Counts that fit on
+disjoint GPUs start together (on 8 GPUs 1 + 2 + 4; on 4, 1 + 2 and then 4), so their compiles
+overlap, and take turns (a file lock) for the warm-up and timed rollouts; `--sequential` runs
+one count after another, each on GPUs 0..n-1. Results: a table, and a JSON file (device names,
+count, batch, commit, date, command) in `benchmarks/results/`, whose last stdout line is the
+summary row.
 Set XLA_PYTHON_CLIENT_MEM_FRACTION (~0.45, the default here) so that JAX leaves Warp room.
 """
 
@@ -136,6 +137,20 @@ def measure(args: argparse.Namespace) -> dict:
 # The parent: one child per device count
 
 
+def side_by_side(counts: list[int], gpus: int) -> list[list[int]]:
+    """The counts in waves whose processes run at once on disjoint GPUs: packed largest first,
+    each wave taking every count left that still fits beside it; the smallest counts run first."""
+    left, waves = sorted(counts, reverse=True), []
+    while left:
+        wave = [left.pop(0)]
+        for n in list(left):
+            if sum(wave) + n <= gpus:
+                wave.append(n)
+                left.remove(n)
+        waves.append(sorted(wave))
+    return waves[::-1]
+
+
 def child_env(args: argparse.Namespace, gpus: list[int], n: int) -> dict:
     env = dict(os.environ)
     env.setdefault("XLA_PYTHON_CLIENT_MEM_FRACTION", "0.45")
@@ -180,11 +195,7 @@ def main() -> None:
         print(f"skipping device counts {skipped}: {available} GPU(s) visible", flush=True)
     if args.strong and any(args.envs_per_task % n for n in counts):
         sys.exit(f"--strong: --envs-per-task {args.envs_per_task} must split evenly over {counts} devices")
-    side_by_side = not args.cpu and not args.sequential and sum(counts) <= available
-    gpu_sets, first = [], 0
-    for n in counts:
-        gpu_sets.append(list(range(first, first + n)) if side_by_side else list(range(n)))
-        first += n
+    waves = [[n] for n in counts] if args.cpu or args.sequential else side_by_side(counts, available)
 
     script = Path(__file__).resolve()
     forwarded = ["--set", args.set, "--envs-per-task", str(args.envs_per_task), "--steps", str(args.steps)]
@@ -193,21 +204,18 @@ def main() -> None:
     start = time.perf_counter()
     rows = []
     with tempfile.NamedTemporaryFile(prefix="mwjax-multi-gpu-", suffix=".lock") as lock:
-        commands = [
-            [sys.executable, str(script), *forwarded, "--child", str(n), "--lock", lock.name] for n in counts
-        ]
-        if side_by_side:
-            procs = [
-                subprocess.Popen(cmd, env=child_env(args, gpus, n), stdout=subprocess.PIPE, text=True)
-                for cmd, gpus, n in zip(commands, gpu_sets, counts, strict=True)
-            ]
-            outputs = [(p.communicate()[0], p.returncode) for p in procs]
-        else:
-            outputs = []
-            for cmd, gpus, n in zip(commands, gpu_sets, counts, strict=True):
-                done = subprocess.run(cmd, env=child_env(args, gpus, n), stdout=subprocess.PIPE, text=True)
-                outputs.append((done.stdout, done.returncode))
-    for n, (stdout, code) in zip(counts, outputs, strict=True):
+        outputs = {}
+        for wave in waves:
+            procs, first = {}, 0
+            for n in wave:
+                command = [sys.executable, str(script), *forwarded, "--child", str(n), "--lock", lock.name]
+                gpus = list(range(first, first + n))
+                procs[n] = subprocess.Popen(
+                    command, env=child_env(args, gpus, n), stdout=subprocess.PIPE, text=True
+                )
+                first += n
+            outputs |= {n: (p.communicate()[0], p.returncode) for n, p in procs.items()}
+    for n, (stdout, code) in sorted(outputs.items()):
         if code:
             print(f"{n} device(s): the run failed (exit {code})", flush=True)
             continue
@@ -229,7 +237,7 @@ def main() -> None:
         "scaling": [r["scaling"] for r in rows],
         "valid": all(r["valid"] for r in rows) and len(rows) == len(counts),
         "weak_scaling": not args.strong,
-        "side_by_side_compiles": side_by_side,
+        "waves": waves,
         "commit": commit(),
         "date": now.isoformat(timespec="seconds"),
         "host": platform.node(),

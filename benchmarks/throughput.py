@@ -191,49 +191,36 @@ def _with_provenance(function: Callable[..., dict], *args: object) -> dict:
     return {**function(*args), "provenance": provenance()}
 
 
-def measure_adapter(benchmark: str, total: int, steps: int) -> dict:
-    """The Gymnasium adapter stepped from Python: NumPy actions in, NumPy results out, against the
-    same adapter with device (jax) arrays, which isolates the host transfer."""
+def measure_adapter(benchmark: str, total: int, steps: int, array_type: str) -> dict:
+    """The Gymnasium adapter stepped from Python with `array_type` actions in and results out:
+    "numpy" is what a Gymnasium user gets, "jax" (device arrays) isolates the host transfer."""
     n_tasks = len(task_names(tasks_arg(benchmark)))
-    rates = {}
-    for array_type in ("jax", "numpy"):
-        envs = make_vector(
-            tasks_arg(benchmark), envs_per_task=total // n_tasks, seed=0, array_type=array_type
-        )
-        envs.reset(seed=0)
-        rng = np.random.default_rng(0)
-        actions = rng.uniform(-1, 1, size=(steps + 1, envs.num_envs, 4)).astype(np.float32)
-        if array_type == "jax":
-            actions = jnp.asarray(actions)
-        jax.block_until_ready(envs.step(actions[0]))  # compile
-        t0 = time.perf_counter()
-        for action in actions[1:]:
-            out = envs.step(action)
-        jax.block_until_ready(out)
-        rates[array_type] = envs.num_envs * steps / (time.perf_counter() - t0)
-        envs.close()
-    return {
-        "benchmark": benchmark,
-        "num_envs": total,
-        "adapter_steps": steps,
-        "adapter_jax_env_steps_per_s": rates["jax"],
-        "adapter_numpy_env_steps_per_s": rates["numpy"],
-        "numpy_transfer_ms_per_step": 1e3 * total * (1 / rates["numpy"] - 1 / rates["jax"]),
-    }
+    envs = make_vector(tasks_arg(benchmark), envs_per_task=total // n_tasks, seed=0, array_type=array_type)
+    envs.reset(seed=0)
+    rng = np.random.default_rng(0)
+    actions = rng.uniform(-1, 1, size=(steps + 1, envs.num_envs, 4)).astype(np.float32)
+    if array_type == "jax":
+        actions = jnp.asarray(actions)
+    jax.block_until_ready(envs.step(actions[0]))  # compile
+    t0 = time.perf_counter()
+    for action in actions[1:]:
+        out = envs.step(action)
+    jax.block_until_ready(out)
+    return {f"adapter_{array_type}_env_steps_per_s": envs.num_envs * steps / (time.perf_counter() - t0)}
 
 
 def adapter_row(benchmark: str, total: int, steps: int) -> dict:
-    """The adapter's timing, or the error that stopped it (out of device memory, say): recorded in
-    the row, so the throughput rows measured before it are still written."""
-    try:
-        return in_fresh_process(measure_adapter, benchmark, total, steps)
-    except Exception as e:  # the child's exception, or a child that died (BrokenProcessPool)
-        return {
-            "benchmark": benchmark,
-            "num_envs": total,
-            "adapter_steps": steps,
-            "error": f"{type(e).__name__}: {e}",
-        }
+    """The adapter's timing, each array type in a process of its own (Warp keeps an env's CUDA
+    graphs for the life of its process), or the error that stopped it (out of device memory,
+    say): recorded in the row, so the throughput rows measured before it are still written."""
+    row: dict = {"benchmark": benchmark, "num_envs": total, "adapter_steps": steps}
+    for array_type in ("jax", "numpy"):
+        try:
+            row |= in_fresh_process(measure_adapter, benchmark, total, steps, array_type)
+        except Exception as e:  # the child's exception, or a child that died (BrokenProcessPool)
+            return row | {"error": f"{array_type} arrays: {type(e).__name__}: {e}"}
+    jax_rate, numpy_rate = row["adapter_jax_env_steps_per_s"], row["adapter_numpy_env_steps_per_s"]
+    return row | {"numpy_transfer_ms_per_step": 1e3 * total * (1 / numpy_rate - 1 / jax_rate)}
 
 
 def measure_reference(python: str, benchmark: str, steps: int) -> dict:

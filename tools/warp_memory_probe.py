@@ -3,13 +3,16 @@
     python tools/warp_memory_probe.py MT1:pick-place-v3 131070 --steps 500
     python tools/warp_memory_probe.py MT1:pick-place-v3 131070 --ccd-pairs 4
     python tools/warp_memory_probe.py MT10 131070 --steps 500 --carry-flags   # as throughput.py
+    python tools/warp_memory_probe.py MT10 131070 --steps 50 --adapter        # the Gymnasium adapter
 
 Builds one set at a batch, runs three random-action rollouts of `--steps` steps (the first one
 includes Warp's kernel builds and graph captures), and prints per rollout its time, the card's
 memory in use (nvidia-smi), Warp's memory-pool use, JAX's peak and how many CUDA graphs Warp's
 callables keep: in MJX's default graph mode one per call and set of buffer addresses, each with
 the scratch it allocated, so a count that grows from rollout to rollout shows buffers that moved
-(`--no-donate`, `--carry-flags` and `--graph-mode` vary what might move them). Warp's policy is
+(`--no-donate`, `--carry-flags` and `--graph-mode` vary what might move them). `--adapter` steps
+the Gymnasium adapter (`mwjax.make_vector`, one jitted step per Python call) `--steps` times per
+round instead, which is where XLA may hand a call site new buffers at every call. Warp's policy is
 the default; `MWJAX_WARP_GRAPHS_PER_SITE=K` bounds each call site to K (`mwjax.warp_graphs`).
 At the end it prints the shapes of the scratch arrays that Warp's convex collider
 (`collision_convex.convex_narrowphase`) allocated and how often: the first dimension is the
@@ -25,6 +28,7 @@ import collections
 import os
 import subprocess
 import time
+from collections.abc import Callable
 from typing import Any
 
 import jax
@@ -34,8 +38,9 @@ import warp as wp
 from warp._src.jax import ffi
 
 import mwjax
-from mwjax.benchmarks import task_names
+from mwjax.benchmarks import parse_tasks, task_names
 from mwjax.warp_graphs import kept_graphs
+from mwjax.wrappers.gymnasium import make_vector
 
 SHAPES: collections.Counter[str] = collections.Counter()
 
@@ -83,6 +88,7 @@ def main() -> None:
         action="store_true",
         help="carry the overflow flags and a success count through the scan, as throughput.py does",
     )
+    parser.add_argument("--adapter", action="store_true", help="step the Gymnasium adapter from Python")
     args = parser.parse_args()
     collision_convex.wp = _CountingWarp()
 
@@ -108,23 +114,49 @@ def main() -> None:
         flags = (jnp.zeros(env.num_envs, jnp.int32), jnp.zeros((), jnp.int32)) if args.carry_flags else ()
         return jax.lax.scan(body, (state, *flags), jax.random.split(key, args.steps))[0]
 
-    state = jax.jit(env.reset)(jax.random.key(0))
-    run = jax.jit(rollout, donate_argnums=() if args.no_donate else 0)
+    if args.adapter:
+        if args.graph_mode or args.ccd_pairs or args.no_donate or args.carry_flags:
+            parser.error("--adapter steps the adapter with default physics, without the rollout options")
+        run = adapter_rounds(args)
+    else:
+        state = jax.jit(env.reset)(jax.random.key(0))
+        jitted = jax.jit(rollout, donate_argnums=() if args.no_donate else 0)
+
+        def run(key: jax.Array) -> None:
+            nonlocal state
+            state = jax.block_until_ready(jitted(state, key))[0]
+
     device = wp.get_device()
+    label = "adapter round" if args.adapter else "rollout"
     for i in range(3):
         t0 = time.perf_counter()
-        state = jax.block_until_ready(run(state, jax.random.key(i)))[0]
+        run(jax.random.key(i))
         seconds = time.perf_counter() - t0
         stats = jax.devices()[0].memory_stats() or {}
         pool = wp.get_mempool_used_mem_current(device) / 2**30 if device.is_cuda else 0.0
         print(
-            f"rollout {i}: {seconds:.1f} s ({env.num_envs * args.steps / seconds:,.0f} env steps/s), "
+            f"{label} {i}: {seconds:.1f} s ({env.num_envs * args.steps / seconds:,.0f} env steps/s), "
             f"card {card_memory_mib()}, Warp pool {pool:.2f} GiB, "
             f"JAX peak {stats.get('peak_bytes_in_use', 0) / 2**30:.2f} GiB, "
             f"Warp graphs kept {warp_graphs()}",
             flush=True,
         )
     print("convex-collider scratch shapes (calls):", dict(SHAPES.most_common(8)))
+
+
+def adapter_rounds(args: argparse.Namespace) -> Callable[[jax.Array], None]:
+    """One round: `--steps` adapter steps with device (jax) actions, as a Python training loop
+    that keeps its data on the GPU would call it (default physics: the adapter takes no config)."""
+    per_task = args.envs // len(task_names(args.set))
+    envs = make_vector(parse_tasks(args.set), envs_per_task=per_task, array_type="jax")
+    envs.reset(seed=0)
+
+    def run(key: jax.Array) -> None:
+        for k in jax.random.split(key, args.steps):
+            out = envs.step(jax.random.uniform(k, (envs.num_envs, 4), minval=-1.0, maxval=1.0))
+        jax.block_until_ready(out)
+
+    return run
 
 
 if __name__ == "__main__":

@@ -33,6 +33,7 @@ from mwjax import (
     progress,
     warp_ast,
     warp_cpu_graphs,
+    warp_empty_args,
     warp_equality,
     warp_graphs,
     warp_streams,
@@ -45,6 +46,7 @@ warp_ast.install()
 warp_cpu_graphs.install()
 warp_graphs.install()
 warp_equality.install()
+warp_empty_args.install()
 progress.install()
 caches.configure()
 
@@ -163,17 +165,17 @@ class PhysicsState:
     time: jax.Array
     qpos: jax.Array
     qvel: jax.Array
-    act: jax.Array
-    history: jax.Array
+    act: jax.Array | None  # None where the scene has none (`_EMPTY_IN_METAWORLD`)
+    history: jax.Array | None
     qacc_warmstart: jax.Array
-    plugin_state: jax.Array
+    plugin_state: jax.Array | None
     ctrl: jax.Array
     qfrc_applied: jax.Array
     xfrc_applied: jax.Array
     eq_active: jax.Array
     mocap_pos: jax.Array
     mocap_quat: jax.Array
-    userdata: jax.Array
+    userdata: jax.Array | None
     # The poses the tasks read (observations, rewards), as the last step or kinematics left them.
     xpos: jax.Array
     xquat: jax.Array
@@ -196,6 +198,10 @@ class PhysicsState:
 
 
 _FIELDS = tuple(f.name for f in dataclasses.fields(PhysicsState) if f.name not in ("overflow", "rows_needed"))
+# Fields no Meta-World scene has entries in (no activations, delays, plugins or user data): a
+# state carries None for them rather than zero-size arrays (`mwjax.warp_empty_args` says why);
+# the data rebuilt from `mjx.make_data` at each step has them anyway.
+_EMPTY_IN_METAWORLD = ("act", "history", "plugin_state", "userdata")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -238,8 +244,8 @@ class Physics:
         self.groups: tuple[SceneGroup, ...] = tuple(groups)
         # The model is closed over, not a vmap argument: as an argument, every call hashes all
         # of its NumPy fields (meshes included) while tracing.
-        self._substep = tuple(jax.vmap(functools.partial(mjx.step, g.device_model)) for g in groups)
-        self._kinematics = tuple(jax.vmap(functools.partial(mjx.kinematics, g.device_model)) for g in groups)
+        self._substep = tuple(jax.vmap(functools.partial(_step, g.device_model)) for g in groups)
+        self._kinematics = tuple(jax.vmap(functools.partial(_kinematics, g.device_model)) for g in groups)
         # Every step rebuilds each scene's whole data from `mjx.make_data`; traced afresh at each
         # of MT50's ~100 call sites it dominated the step's lowering. Jitted, it is traced once
         # per scene (it makes no Warp call, so sharing its trace shares no captured graph).
@@ -257,8 +263,9 @@ class Physics:
     def data(self, g: int, state: PhysicsState) -> mjx.Data:
         """Group `g`'s full `mjx.Data` for `state`: what the next step reads, the rest as
         `mjx.make_data` leaves it until a step or kinematics computes it."""
+        carried = {name: getattr(state, name) for name in _FIELDS}
         data = self._maker(g, state.qpos.shape[0])().replace(
-            **{name: getattr(state, name) for name in _FIELDS}
+            **{name: value for name, value in carried.items() if value is not None}
         )
         return data.replace(_impl=data._impl.replace(overflow=state.overflow))
 
@@ -404,10 +411,22 @@ def convex_candidates(device_model: mjx.Model, box_box_collider: str) -> int:
     )
 
 
+def _step(model: mjx.Model, data: mjx.Data) -> mjx.Data:
+    return mjx.step(warp_empty_args.traced(model), data)
+
+
+def _kinematics(model: mjx.Model, data: mjx.Data) -> mjx.Data:
+    return mjx.kinematics(warp_empty_args.traced(model), data)
+
+
 def _carried(data: mjx.Data, rows_needed: jax.Array | None = None) -> PhysicsState:
     # MJX has no public accessor for Warp's overflow flags and row counts, hence the private field.
+    fields = {name: getattr(data, name) for name in _FIELDS}
+    for name in _EMPTY_IN_METAWORLD:
+        if fields[name].size == 0:
+            fields[name] = None
     return PhysicsState(
-        **{name: getattr(data, name) for name in _FIELDS},
+        **fields,
         overflow=data._impl.overflow,
         rows_needed=data._impl.nefc if rows_needed is None else rows_needed,
     )

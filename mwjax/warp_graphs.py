@@ -12,8 +12,12 @@ can grow by a whole set of graphs at a time, up to 32 per callable.
 `install()` can bound it per site: with `MWJAX_WARP_GRAPHS_PER_SITE=K` (K >= 1) a site keeps
 the graphs of its last K sets of buffer addresses, an older set's graph, with its scratch, is
 released before the new one is captured, and Warp's per-callable limit is lifted (it would evict
-graphs of sites in use when a callable has more than 32 sites). Off by default (0: Warp's own
-policy), because one site may legitimately see several sets in one execution: measured on an
+graphs of sites in use when a callable has more than 32 sites). `bounded(K)` bounds only the sites
+traced inside it (Warp's per-callable limit stays): the Gymnasium adapter traces its jitted calls
+so, with K=1, because a program called from Python step by step gets new temporary buffers at
+every call and so never replays a graph (measured: `docs/performance.md`, the adapter), while
+keeping up to 32 ran out of memory at 131k envs. The process-wide bound is off by default (0:
+Warp's own policy), because one site may legitimately see several sets in one execution: measured on an
 H200 (MT10, 32,760 envs, 500-step rollouts, substeps as a device loop), Warp's policy kept 32
 graphs for 12 sites, the same after every rollout, and K=1 made most calls capture anew, 306,646
 instead of 494,003 env steps/s
@@ -24,15 +28,21 @@ CPU is not concerned: Warp captures nothing there (`mwjax.warp_cpu_graphs` recor
 from __future__ import annotations
 
 import collections
+import contextlib
 import ctypes
+import functools
 import os
 import threading
-from typing import Any
+from collections.abc import Callable, Iterator
+from typing import Any, TypeVar
 
 from warp._src.jax import ffi
 
+T = TypeVar("T")
 _lock = threading.Lock()
 _installed = False
+# Per-site bounds set by `bounded`: (id of the Warp callable, call id) -> graphs kept.
+_site_limits: dict[tuple[int, int], int] = {}
 
 
 def per_site() -> int:
@@ -54,15 +64,50 @@ def admit(kept: collections.deque[int], key: int, limit: int) -> list[int]:
     return [kept.popleft() for _ in range(len(kept) - limit)]
 
 
-def install() -> None:
-    """Patch Warp's FFI callback once per process (idempotent; a no-op with a limit of 0)."""
+@contextlib.contextmanager
+def bounded(limit: int) -> Iterator[None]:
+    """Warp call sites traced inside the block keep at most `limit` graphs each (on top of Warp's
+    per-callable limit). Wrap the call of a jitted function, whose first call traces it."""
+    if limit < 1:
+        raise ValueError(f"limit must be at least 1, got {limit}")
+    install(force=True)
+    before = {id(c): c.call_id for c in ffi._FFI_CALLABLE_REGISTRY.values()}
+    try:
+        yield
+    finally:
+        with _lock:
+            for c in ffi._FFI_CALLABLE_REGISTRY.values():
+                for call_id in range(before.get(id(c), 0), c.call_id):
+                    _site_limits[id(c), call_id] = limit
+
+
+def stepped_from_python(function: Callable[..., T]) -> Callable[..., T]:
+    """`function` (jitted) with the Warp call sites it traces bounded to one graph each: for a
+    program called step by step from Python, whose calls never replay a graph (module doc)."""
+
+    @functools.wraps(function)
+    def call(*args: Any, **kwargs: Any) -> T:
+        with bounded(1):
+            return function(*args, **kwargs)
+
+    return call
+
+
+def bounded_sites() -> int:
+    """How many call sites `bounded` has bounded in this process."""
+    return len(_site_limits)
+
+
+def install(force: bool = False) -> None:
+    """Patch Warp's FFI callback once per process (idempotent; a no-op with a limit of 0 unless
+    `force`, which `bounded` uses)."""
     global _installed
-    limit = per_site()
     with _lock:
-        if _installed or limit == 0:
+        if _installed or (per_site() == 0 and not force):
             return
         _installed = True
     original = ffi.FfiCallable.ffi_callback
+    everywhere = per_site()
 
     def ffi_callback(self: ffi.FfiCallable, call_frame: Any, platform: str) -> Any:
         frame = call_frame.contents
@@ -75,6 +120,9 @@ def install() -> None:
         # The key Warp's callback computes for this call (same fields, same order).
         attr = ctypes.cast(frame.attrs.attrs[0], ctypes.POINTER(ffi.XLA_FFI_Scalar)).contents
         call_id = ctypes.cast(attr.value, ctypes.POINTER(ctypes.c_int64)).contents.value
+        limit = _site_limits.get((id(self), call_id), everywhere)
+        if limit == 0:
+            return original(self, call_frame, platform)
         inputs = ctypes.cast(frame.args.args, ctypes.POINTER(ctypes.POINTER(ffi.XLA_FFI_Buffer)))
         outputs = ctypes.cast(frame.rets.rets, ctypes.POINTER(ctypes.POINTER(ffi.XLA_FFI_Buffer)))
         key = hash(
@@ -88,9 +136,10 @@ def install() -> None:
         with ffi._FFI_CALLBACK_LOCK:
             desc = self.call_descriptors[call_id]
             kept = desc.__dict__.get("mwjax_graph_keys")
-            if kept is None:  # the site's first call: the per-site bound replaces Warp's
+            if kept is None:  # the site's first call; a process-wide bound replaces Warp's
                 kept = desc.mwjax_graph_keys = collections.deque()
-                self.graph_cache_max = None
+                if everywhere:
+                    self.graph_cache_max = None
             for old in admit(kept, key, limit):
                 self.captures.pop(old, None)
         return original(self, call_frame, platform)

@@ -19,7 +19,7 @@ import jax.numpy as jnp
 import numpy as np
 from gymnasium.vector import AutoresetMode
 
-from mwjax import benchmarks, rendering
+from mwjax import benchmarks, rendering, warp_graphs
 from mwjax.config import MAX_EPISODE_STEPS, EnvConfig
 from mwjax.env import Env, State, make
 from mwjax.sharding import ShardedEnv
@@ -125,12 +125,14 @@ class MwjaxVectorEnv(gym.vector.VectorEnv):
         self.single_action_space = gym.spaces.Box(-1.0, 1.0, (4,), dtype=np.float32)
         self.observation_space = gym.vector.utils.batch_space(self.single_observation_space, self.num_envs)
         self.action_space = gym.vector.utils.batch_space(self.single_action_space, self.num_envs)
-        self._reset = jax.jit(env.reset)
-        # The old state is donated: each step's state reuses its buffers, so on a GPU Warp sees
-        # the same addresses every step and replays one captured CUDA graph instead of capturing
-        # (and keeping alive) a new one per buffer set. `state` is always the current one.
-        self._step = jax.jit(env.step, donate_argnums=0)
-        self._sample_goals = jax.jit(env.sample_goals)
+        # Called step by step from Python, these programs get new temporary buffers at every
+        # call, so on a GPU Warp captures their calls' CUDA graphs anew each time; keeping one
+        # graph per call site (`mwjax.warp_graphs`) instead of Warp's up to 32, each with its
+        # collider scratch, is what lets 100k+ envs fit. The old state is donated (`state` is
+        # always the current one).
+        self._reset = warp_graphs.stepped_from_python(jax.jit(env.reset))
+        self._step = warp_graphs.stepped_from_python(jax.jit(env.step, donate_argnums=0))
+        self._sample_goals = warp_graphs.stepped_from_python(jax.jit(env.sample_goals))
         self._key = jax.random.key(0)
         self._state: State | None = None
 
@@ -223,8 +225,8 @@ class _SingleEnv(gym.Env):
         )
         self.action_space = gym.spaces.Box(-1.0, 1.0, (4,), dtype=np.float32)
         self._one_hot = one_hot
-        self._reset = jax.jit(core.reset)
-        self._step = jax.jit(core.step, donate_argnums=0)  # as in MwjaxVectorEnv
+        self._reset = warp_graphs.stepped_from_python(jax.jit(core.reset))  # as in MwjaxVectorEnv
+        self._step = warp_graphs.stepped_from_python(jax.jit(core.step, donate_argnums=0))
         self._key = key
         self._state: State | None = None
         self.render_mode = render.get("render_mode")

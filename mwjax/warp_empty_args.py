@@ -1,0 +1,54 @@
+"""Makes MJX-Warp's empty model arrays in the trace, so that no `shard_map` gets a zero-size input.
+
+JAX 0.11's Shardy partitioner crashes (a segfault in its export pass, while compiling) on a
+zero-size input of a `shard_map` that the map's body uses. A sharded env's step had 172 such
+inputs: JAX 0.11 turns every constant a `shard_map` body closes over into an input of the map,
+and MJX-Warp passes the model's arrays to each Warp call as constants, the empty ones (index
+arrays of features Meta-World's scenes lack: tendons, flexes, sensors, ...) included. Made in the
+trace (`jnp.zeros`), an empty array is an operation of the body rather than a constant, and the
+map gets no zero-size input. JAX 0.10 compiles either form.
+
+`install()` does it for the model's static NumPy fields, which MJX-Warp hands to Warp's FFI
+callable as they are (patching `FfiCallable.__call__`); `traced(model)` does it for the model's
+array leaves, which Warp gets through MJX's own marshalling; the env's state carries no empty
+arrays (`mwjax.physics.PhysicsState`).
+"""
+
+from __future__ import annotations
+
+import threading
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from warp._src.jax import ffi
+
+_lock = threading.Lock()
+_installed = False
+
+
+def install() -> None:
+    """Patch Warp's `FfiCallable.__call__` once per process (idempotent)."""
+    global _installed
+    with _lock:
+        if _installed:
+            return
+        _installed = True
+    call = ffi.FfiCallable.__call__
+
+    def with_empties_traced(self: ffi.FfiCallable, *args: Any, **kwargs: Any) -> Any:
+        return call(self, *(_traced(x) for x in args), **kwargs)
+
+    ffi.FfiCallable.__call__ = with_empties_traced
+
+
+def traced(model: Any) -> Any:
+    """`model` (any pytree) with its zero-size array leaves made in the trace."""
+    return jax.tree.map(_traced, model)
+
+
+def _traced(x: Any) -> Any:
+    if isinstance(x, np.ndarray | jax.Array) and not isinstance(x, jax.core.Tracer) and x.size == 0:
+        return jnp.zeros(x.shape, x.dtype)
+    return x

@@ -16,7 +16,6 @@ arrays (`mwjax.physics.PhysicsState`).
 
 from __future__ import annotations
 
-import threading
 from typing import Any
 
 import jax
@@ -24,22 +23,17 @@ import jax.numpy as jnp
 import numpy as np
 from warp._src.jax import ffi
 
-_lock = threading.Lock()
-_installed = False
-
 
 def install() -> None:
-    """Patch Warp's `FfiCallable.__call__` once per process (idempotent)."""
-    global _installed
-    with _lock:
-        if _installed:
-            return
-        _installed = True
+    """Patch Warp's `FfiCallable.__call__` (idempotent: the patch marks itself)."""
     call = ffi.FfiCallable.__call__
+    if getattr(call, "mwjax_empties_traced", False):
+        return
 
     def with_empties_traced(self: ffi.FfiCallable, *args: Any, **kwargs: Any) -> Any:
         return call(self, *(_traced(x) for x in args), **kwargs)
 
+    with_empties_traced.mwjax_empties_traced = True  # type: ignore[attr-defined]
     ffi.FfiCallable.__call__ = with_empties_traced
 
 

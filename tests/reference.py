@@ -55,18 +55,21 @@ class Replay:
 
 
 def replay_recorded_states(
-    tasks: list[str], reward_version: str = "v2", reference_init_tcp: Sequence[str] = ()
-) -> Replay:
+    tasks: list[str], versions: Sequence[str] = ("v2",), reference_init_tcp: Sequence[str] = ()
+) -> dict[str, Replay]:
     """Loads each recorded post-step physics state into one batched env (one row per recorded
-    step), with the recorded previous observation as the stacked frame, and evaluates it. Episode
-    constants are mwjax's own, from its reset to each recorded goal, except that the tasks in
-    `reference_init_tcp` get the reference's recorded `init_tcp`.
+    step), with the recorded previous observation as the stacked frame, and evaluates it with
+    each reward version of `versions` (one `Replay` each). Episode constants are mwjax's own, from
+    its reset to each recorded goal, except that the tasks in `reference_init_tcp` get the
+    reference's recorded `init_tcp`.
 
     Constants latched on an episode's first step are evaluated on each reset's first recorded
-    step, then given to that reset's later steps (evaluated as steps > 0, so they keep them)."""
+    step, then given to that reset's later steps (evaluated as steps > 0, so they keep them).
+    The reset and the loaded state are the first version's; the versions differ only in the
+    reward, so the others evaluate the same state (and compile only their own `observe`)."""
     resets, steps = shape(tasks[0])
     goals = {task: load(task)["rand_vec"] for task in tasks}
-    env = mwjax.make(tasks, envs_per_task=resets * steps, reward_version=reward_version, goal_variants=goals)
+    env = mwjax.make(tasks, envs_per_task=resets * steps, reward_version=versions[0], goal_variants=goals)
     order = env.task_list
 
     def rows(task: str, key: str) -> np.ndarray:
@@ -88,29 +91,32 @@ def replay_recorded_states(
     for task in reference_init_tcp:
         init_tcp[env.task_rows(task)] = np.repeat(load(task)["const_init_tcp"], steps, axis=0)
     state = dataclasses.replace(state, constants={**state.constants, "init_tcp": jnp.asarray(init_tcp)})
-    actions = np.concatenate([rows(t, "action") for t in order])
+    actions = jnp.asarray(np.concatenate([rows(t, "action") for t in order]))
     previous = [
         np.concatenate([load(t)["reset_obs"][:, None], load(t)["obs"][:, :-1]], axis=1) for t in order
     ]
     previous_obs = np.concatenate([p.reshape(resets * steps, -1) for p in previous])
     state = dataclasses.replace(state, obs=jnp.asarray(previous_obs, jnp.float32))
-    observe = jax.jit(env.observe)
-    first = observe(state, jnp.asarray(actions))
     episode_start = (np.arange(env.num_envs) // steps) * steps
-    state = dataclasses.replace(
-        state,
-        constants={k: v[episode_start] for k, v in first.constants.items()},
-        steps=jnp.asarray(np.arange(env.num_envs) % steps, jnp.int32),
-    )
-    state = observe(state, jnp.asarray(actions))
 
     def per_task(x: jax.Array) -> dict[str, np.ndarray]:
         x = np.asarray(x)
         return {t: x[env.task_rows(t)].reshape(resets, steps, *x.shape[1:]) for t in order}
 
-    return Replay(
-        obs=per_task(state.obs), reward=per_task(state.reward), success=per_task(state.info["success"])
-    )
+    replays = {}
+    for version in versions:
+        observe = jax.jit((env if version == versions[0] else env.replace(reward_version=version)).observe)
+        first = observe(state, actions)
+        latched = dataclasses.replace(
+            state,
+            constants={k: v[episode_start] for k, v in first.constants.items()},
+            steps=jnp.asarray(np.arange(env.num_envs) % steps, jnp.int32),
+        )
+        final = observe(latched, actions)
+        replays[version] = Replay(
+            obs=per_task(final.obs), reward=per_task(final.reward), success=per_task(final.info["success"])
+        )
+    return replays
 
 
 def load_episodes(directory: Path, task: str) -> dict:

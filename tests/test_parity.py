@@ -87,13 +87,18 @@ REFERENCE_INIT_TCP = ["door-unlock-v3", "handle-press-v3", "handle-pull-v3"]
 
 
 @pytest.fixture(scope="module")
-def replay():
-    return replay_recorded_states(PORTED, reference_init_tcp=REFERENCE_INIT_TCP)
+def replays():
+    return replay_recorded_states(PORTED, ("v2", "v1"), reference_init_tcp=REFERENCE_INIT_TCP)
 
 
 @pytest.fixture(scope="module")
-def replay_v1():
-    return replay_recorded_states(PORTED, "v1", reference_init_tcp=REFERENCE_INIT_TCP)
+def replay(replays):
+    return replays["v2"]
+
+
+@pytest.fixture(scope="module")
+def replay_v1(replays):
+    return replays["v1"]
 
 
 @pytest.fixture(scope="module")

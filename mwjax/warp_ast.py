@@ -9,7 +9,11 @@ threads parsing at once can fail with "SystemError: AST constructor recursion de
 (cpython gh-106905). It failed the renderer's kernel build inside an FFI call in a test run.
 
 `install()` gives Warp's code generator and context an `ast` whose `parse` holds one process-wide
-lock; the rest of `ast` is the standard module, and nobody else's `ast` changes.
+(re-entrant) lock, and puts the same locked `parse` in the `ast` module itself: a parse on
+another thread that is not Warp's collides as well (CPython 3.11 formats a traceback's caret
+line with `ast.parse`, `inspect` parses builtins' signatures with it), and a cold-cache test run
+failed the renderer's kernel build so with Warp's parses already serialized. The lock only
+orders the parses; what they return is unchanged.
 """
 
 from __future__ import annotations
@@ -22,6 +26,7 @@ import warp._src.codegen as warp_codegen
 import warp._src.context as warp_context
 
 _lock = threading.RLock()
+_parse = ast.parse
 
 
 class _LockedAst:
@@ -32,12 +37,18 @@ class _LockedAst:
 
     @staticmethod
     def parse(*args: Any, **kwargs: Any) -> ast.AST:
-        with _lock:
-            return ast.parse(*args, **kwargs)
+        return locked_parse(*args, **kwargs)
+
+
+def locked_parse(*args: Any, **kwargs: Any) -> ast.AST:
+    """`ast.parse`, one thread at a time."""
+    with _lock:
+        return _parse(*args, **kwargs)
 
 
 def install() -> None:
-    """Give Warp's modules the serialized `ast` (idempotent)."""
+    """Give Warp's modules the serialized `ast`, and `ast` the serialized `parse` (idempotent)."""
     for module in (warp_codegen, warp_context):
         if not isinstance(module.ast, _LockedAst):
             module.ast = _LockedAst()
+    ast.parse = locked_parse

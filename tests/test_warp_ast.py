@@ -50,3 +50,12 @@ def test_parses_on_several_threads_at_once_do_not_fail():
         gc.set_threshold(*threshold)
     assert errors == []
     assert warp_codegen.ast.Name is ast.Name  # the rest is the standard module
+
+
+def test_every_parse_in_the_process_takes_the_lock():
+    """A parse outside Warp (a traceback's caret line, `inspect`) collides with Warp's as well:
+    the `ast` module's own `parse` is the serialized one, and it still parses."""
+    from mwjax import warp_ast
+
+    assert ast.parse is warp_ast.locked_parse
+    assert warp_codegen.ast.parse(SOURCE).body[0].name == ast.parse(SOURCE).body[0].name == "f0"

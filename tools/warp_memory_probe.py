@@ -12,7 +12,9 @@ callables keep: in MJX's default graph mode one per call and set of buffer addre
 the scratch it allocated, so a count that grows from rollout to rollout shows buffers that moved
 (`--no-donate`, `--carry-flags` and `--graph-mode` vary what might move them). `--adapter` steps
 the Gymnasium adapter (`mwjax.make_vector`, one jitted step per Python call) `--steps` times per
-round instead, which is where XLA may hand a call site new buffers at every call. Warp's policy is
+round instead, which is where XLA may hand a call site new buffers at every call. The adapter
+keeps one graph per call site by itself (`warp_graphs.stepped_from_python`), whatever
+`MWJAX_WARP_GRAPHS_PER_SITE` says. Warp's policy is
 the default; `MWJAX_WARP_GRAPHS_PER_SITE=K` bounds each call site to K (`mwjax.warp_graphs`).
 At the end it prints the shapes of the scratch arrays that Warp's convex collider
 (`collision_convex.convex_narrowphase`) allocated and how often: the first dimension is the

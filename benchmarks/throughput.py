@@ -191,11 +191,18 @@ def _with_provenance(function: Callable[..., dict], *args: object) -> dict:
     return {**function(*args), "provenance": provenance()}
 
 
-def measure_adapter(benchmark: str, total: int, steps: int, array_type: str) -> dict:
+def measure_adapter(benchmark: str, total: int, steps: int, array_type: str, graph_mode: str | None) -> dict:
     """The Gymnasium adapter stepped from Python with `array_type` actions in and results out:
-    "numpy" is what a Gymnasium user gets, "jax" (device arrays) isolates the host transfer."""
+    "numpy" is what a Gymnasium user gets, "jax" (device arrays) isolates the host transfer.
+    `graph_mode` is the adapter env's `PhysicsConfig.graph_mode` (None: MJX's default)."""
     n_tasks = len(task_names(tasks_arg(benchmark)))
-    envs = make_vector(tasks_arg(benchmark), envs_per_task=total // n_tasks, seed=0, array_type=array_type)
+    envs = make_vector(
+        tasks_arg(benchmark),
+        envs_per_task=total // n_tasks,
+        seed=0,
+        array_type=array_type,
+        physics=mwjax.PhysicsConfig(graph_mode=graph_mode),
+    )
     envs.reset(seed=0)
     rng = np.random.default_rng(0)
     actions = rng.uniform(-1, 1, size=(steps + 1, envs.num_envs, 4)).astype(np.float32)
@@ -209,14 +216,14 @@ def measure_adapter(benchmark: str, total: int, steps: int, array_type: str) -> 
     return {f"adapter_{array_type}_env_steps_per_s": envs.num_envs * steps / (time.perf_counter() - t0)}
 
 
-def adapter_row(benchmark: str, total: int, steps: int) -> dict:
+def adapter_row(benchmark: str, total: int, steps: int, graph_mode: str | None) -> dict:
     """The adapter's timing, each array type in a process of its own (Warp keeps an env's CUDA
     graphs for the life of its process), or the error that stopped it (out of device memory,
     say): recorded in the row, so the throughput rows measured before it are still written."""
-    row: dict = {"benchmark": benchmark, "num_envs": total, "adapter_steps": steps}
+    row: dict = {"benchmark": benchmark, "num_envs": total, "adapter_steps": steps, "graph_mode": graph_mode}
     for array_type in ("jax", "numpy"):
         try:
-            row |= in_fresh_process(measure_adapter, benchmark, total, steps, array_type)
+            row |= in_fresh_process(measure_adapter, benchmark, total, steps, array_type, graph_mode)
         except Exception as e:  # the child's exception, or a child that died (BrokenProcessPool)
             return row | {"error": f"{array_type} arrays: {type(e).__name__}: {e}"}
     jax_rate, numpy_rate = row["adapter_jax_env_steps_per_s"], row["adapter_numpy_env_steps_per_s"]
@@ -248,13 +255,14 @@ def plot(result: dict, path: Path) -> None:
             ax.plot([r["num_envs"] for r in mine], [r["env_steps_per_s"] for r in mine], "o-", color=color)
             ax.lines[-1].set_label(f"mwjax {name}")
         adapter = [r for r in result.get("adapter", []) if r["benchmark"] == name and "error" not in r]
-        if adapter:
+        for j, mode in enumerate(dict.fromkeys(r.get("graph_mode") for r in adapter)):
+            same = [r for r in adapter if r.get("graph_mode") == mode]
             ax.plot(
-                [r["num_envs"] for r in adapter],
-                [r["adapter_numpy_env_steps_per_s"] for r in adapter],
-                "x:",
+                [r["num_envs"] for r in same],
+                [r["adapter_numpy_env_steps_per_s"] for r in same],
+                ("x", "+", "^")[j % 3] + ":",
                 color=color,
-                label=f"mwjax {name}, Gymnasium adapter (NumPy)",
+                label=f"mwjax {name}, Gymnasium adapter (NumPy, {mode or 'default'} graphs)",
             )
         for ref in result.get("reference", []):
             if ref["benchmark"] == name and "error" not in ref:
@@ -294,6 +302,12 @@ def main() -> None:
     parser.add_argument("--reference-steps", type=int, default=EPISODE)
     parser.add_argument("--adapter", action="store_true", help="also time the Gymnasium adapter")
     parser.add_argument("--adapter-steps", type=int, default=50)
+    parser.add_argument(
+        "--adapter-graph-modes",
+        nargs="+",
+        default=["default"],
+        help="the adapter's PhysicsConfig.graph_mode, a row each ('default': MJX's)",
+    )
     parser.add_argument("--plot", action="store_true", help="save the scaling curve as a PNG")
     parser.add_argument("--out", default=None, help="JSON path (default: benchmarks/results/throughput/...)")
     args = parser.parse_args()
@@ -330,8 +344,9 @@ def main() -> None:
                 + (f"  refused: {row['refused']}" if row["refused"] else ""),
                 flush=True,
             )
-            if args.adapter:
-                timing = adapter_row(benchmark, total - total % n_tasks, args.adapter_steps)
+            for graph_mode in args.adapter_graph_modes if args.adapter else ():
+                mode = None if graph_mode == "default" else graph_mode
+                timing = adapter_row(benchmark, total - total % n_tasks, args.adapter_steps, mode)
                 adapter.append(timing)
                 if "error" in timing:
                     text = f"FAILED: {timing['error']}"
@@ -340,7 +355,7 @@ def main() -> None:
                         f"{timing['adapter_numpy_env_steps_per_s']:>12,.0f} env steps/s with NumPy, "
                         f"{timing['adapter_jax_env_steps_per_s']:,.0f} with jax arrays"
                     )
-                print(f"{'':>20} {'':>7}       adapter: {text}", flush=True)
+                print(f"{'':>20} {'':>7}       adapter ({graph_mode} graphs): {text}", flush=True)
     if args.vs_reference:
         for benchmark in args.sets:
             ref = measure_reference(args.vs_reference, benchmark, args.reference_steps)

@@ -22,6 +22,7 @@ from gymnasium.vector import AutoresetMode
 from mwjax import benchmarks, rendering, warp_graphs
 from mwjax.config import MAX_EPISODE_STEPS, EnvConfig
 from mwjax.env import Env, State, make
+from mwjax.physics import PhysicsConfig
 from mwjax.sharding import ShardedEnv
 
 Array = jax.Array
@@ -445,6 +446,7 @@ def make_vector(
     num_tasks: int | None = None,
     env_id: int | None = None,
     devices: Sequence[jax.Device] | None = None,
+    physics: PhysicsConfig | None = None,
     **reference_options: Any,
 ) -> gym.vector.VectorEnv:
     """The Gymnasium vector env of a task set split, with the reference's kwargs.
@@ -460,6 +462,7 @@ def make_vector(
     defaults only. `max_episode_steps=None` means the reference's 500. `array_type="torch"` needs
     PyTorch (the `torch` extra). `devices` splits the batch over them (`mwjax.make`'s): rows are
     then laid out device by device (`env.row_order`; `task_names` and the one-hot ids follow).
+    `physics` is `mwjax.make`'s (buffer sizes, solver iterations, Warp's graph mode).
     """
     if vector_strategy not in (None, "sync", "async"):
         raise ValueError(f"vector_strategy must be 'sync' or 'async', got {vector_strategy!r}")
@@ -490,6 +493,7 @@ def make_vector(
         bench,
         envs_per_task=total // n_tasks,
         devices=devices,
+        physics=physics,
         seed=seed,
         split=split,
         reward_version=reward_function_version,

@@ -17,9 +17,11 @@ env (`devices=None`), the others `mwjax.make(..., devices=the first n GPUs)`.
 Each device count runs in its own process (a clean GPU, its own Warp graphs). Counts that fit on
 disjoint GPUs start together (on 8 GPUs 1 + 2 + 4; on 4, 1 + 2 and then 4), so their compiles
 overlap, and take turns (a file lock) for the warm-up and timed rollouts; `--sequential` runs
-one count after another, each on GPUs 0..n-1. Results: a table, and a JSON file (device names,
-count, batch, commit, date, command) in `benchmarks/results/`, whose last stdout line is the
-summary row.
+one count after another, each on GPUs 0..n-1; `--together` starts every count at once, each on
+GPUs 0..n-1 (so they share GPUs: JAX's memory fraction is split between them), and only the
+rollouts take turns, which fits 1 and 4 GPUs on a 4-GPU machine in one compile's time.
+Results: a table, and a JSON file (device names, count, batch, commit, date, command) in
+`benchmarks/results/`, whose last stdout line is the summary row.
 Set XLA_PYTHON_CLIENT_MEM_FRACTION (~0.45, the default here) so that JAX leaves Warp room.
 """
 
@@ -101,12 +103,14 @@ def measure(args: argparse.Namespace) -> dict:
         t0 = time.perf_counter()
         state, _, overflow = jax.block_until_ready(compiled(state, jax.random.key(1)))
         warmup_s = time.perf_counter() - t0
+        print(f"[{n} device(s)] warm-up rollout: {warmup_s:.0f}s", file=sys.stderr, flush=True)
         overflow_envs = int(overflow)
         times = []
         for i in range(args.repeats):
             t0 = time.perf_counter()
             state, successes, overflow = jax.block_until_ready(compiled(state, jax.random.key(2 + i)))
             times.append(time.perf_counter() - t0)
+            print(f"[{n} device(s)] timed rollout: {times[-1]:.0f}s", file=sys.stderr, flush=True)
             overflow_envs = max(overflow_envs, int(overflow))
     rate = env.num_envs * args.steps / min(times)
     return {
@@ -151,9 +155,10 @@ def side_by_side(counts: list[int], gpus: int) -> list[list[int]]:
     return waves[::-1]
 
 
-def child_env(args: argparse.Namespace, gpus: list[int], n: int) -> dict:
+def child_env(args: argparse.Namespace, gpus: list[int], n: int, sharing: int) -> dict:
+    """A child's environment; `sharing` processes share its busiest GPU."""
     env = dict(os.environ)
-    env.setdefault("XLA_PYTHON_CLIENT_MEM_FRACTION", "0.45")
+    env.setdefault("XLA_PYTHON_CLIENT_MEM_FRACTION", f"{0.45 / sharing:.2f}")
     if args.cpu:
         env["JAX_PLATFORMS"] = "cpu"
         env["XLA_FLAGS"] = f"{env.get('XLA_FLAGS', '')} --xla_force_host_platform_device_count={n}".strip()
@@ -177,6 +182,9 @@ def main() -> None:
     parser.add_argument(
         "--sequential", action="store_true", help="one count after another even if they fit side by side"
     )
+    parser.add_argument(
+        "--together", action="store_true", help="every count at once on shared GPUs, rollouts in turn"
+    )
     parser.add_argument("--out", default=None, help="JSON path (default: benchmarks/results/...)")
     parser.add_argument("--child", type=int, default=None, help=argparse.SUPPRESS)
     parser.add_argument("--lock", default=None, help=argparse.SUPPRESS)
@@ -195,7 +203,14 @@ def main() -> None:
         print(f"skipping device counts {skipped}: {available} GPU(s) visible", flush=True)
     if args.strong and any(args.envs_per_task % n for n in counts):
         sys.exit(f"--strong: --envs-per-task {args.envs_per_task} must split evenly over {counts} devices")
-    waves = [[n] for n in counts] if args.cpu or args.sequential else side_by_side(counts, available)
+    if args.together and (args.cpu or args.sequential):
+        sys.exit("--together shares GPUs: not with --cpu or --sequential")
+    if args.together:
+        waves = [counts]
+    elif args.cpu or args.sequential:
+        waves = [[n] for n in counts]
+    else:
+        waves = side_by_side(counts, available)
 
     script = Path(__file__).resolve()
     forwarded = ["--set", args.set, "--envs-per-task", str(args.envs_per_task), "--steps", str(args.steps)]
@@ -209,9 +224,10 @@ def main() -> None:
             procs, first = {}, 0
             for n in wave:
                 command = [sys.executable, str(script), *forwarded, "--child", str(n), "--lock", lock.name]
-                gpus = list(range(first, first + n))
+                gpus = list(range(n)) if args.together else list(range(first, first + n))
+                sharing = len(wave) if args.together else 1
                 procs[n] = subprocess.Popen(
-                    command, env=child_env(args, gpus, n), stdout=subprocess.PIPE, text=True
+                    command, env=child_env(args, gpus, n, sharing), stdout=subprocess.PIPE, text=True
                 )
                 first += n
             outputs |= {n: (p.communicate()[0], p.returncode) for n, p in procs.items()}
@@ -238,11 +254,14 @@ def main() -> None:
         "valid": all(r["valid"] for r in rows) and len(rows) == len(counts),
         "weak_scaling": not args.strong,
         "waves": waves,
+        "together": args.together,
         "commit": commit(),
         "date": now.isoformat(timespec="seconds"),
         "host": platform.node(),
         "command": shlex.join([sys.executable, *sys.argv]),
-        "xla_mem_fraction": os.environ.get("XLA_PYTHON_CLIENT_MEM_FRACTION", "0.45"),
+        "xla_mem_fraction": os.environ.get(
+            "XLA_PYTHON_CLIENT_MEM_FRACTION", f"{0.45 / (len(counts) if args.together else 1):.2f}"
+        ),
         "graph_mode": args.graph_mode,
         "wall_s": time.perf_counter() - start,
         "results": rows,

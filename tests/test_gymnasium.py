@@ -157,6 +157,12 @@ def test_torch_arrays_need_the_torch_extra():
         gym.make_vec("mwjax/MT10", array_type="torch")
 
 
+def test_physics_settings_reach_the_env():
+    physics = mwjax.PhysicsConfig(graph_mode="none", contacts_per_env=16)
+    envs = gym.make_vec("mwjax/MT1", env_name="reach-v3", physics=physics, array_type="jax")
+    assert envs.unwrapped.env.physics.config == physics
+
+
 @pytest.fixture(scope="module")
 def ml_test():
     # The reference's default meta_batch_size (20) crashes ML1 (50 goals don't split into 20

@@ -6,9 +6,11 @@ import dataclasses
 import functools
 import json
 import os
+import sys
 from collections.abc import Sequence
 from pathlib import Path
 
+import children
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -143,6 +145,40 @@ def engine_reset_gap(task: str, rand_vec: np.ndarray) -> list[dict[str, float]] 
     return baseline["meta"]["own_reset_vs_fixture"][: len(rand_vec)]
 
 
+# Steps of the parity free run (`parity_free_run`), from each parity recording's reset.
+FREE_RUN_STEPS = 10
+
+
+def _reset_arrays(env: mwjax.Env, state: mwjax.State, tasks: Sequence[str]) -> dict[str, dict]:
+    """Per task, the reset state's qpos, qvel and observation."""
+    out = {}
+    for task in tasks:
+        kin = env.kinematics(state, task)
+        out[task] = {
+            "reset_qpos": np.asarray(kin.qpos),
+            "reset_qvel": np.asarray(kin.qvel),
+            "reset_obs": np.asarray(state.obs[env.task_rows(task)]),
+        }
+    return out
+
+
+def parity_free_run(all_tasks) -> dict[str, dict[str, np.ndarray]]:
+    """mwjax's own trajectory from each parity recording's reset, driven by its recorded actions
+    for `FREE_RUN_STEPS`: per task, the reset qpos/qvel/obs (R, ...) and the observations (R, T, 39)."""
+    env = all_tasks.env
+    state = all_tasks.reset_to_recorded(first_variant=0)
+    out = _reset_arrays(env, state, env.task_list)
+    actions = np.concatenate([load(t)["action"][:, :FREE_RUN_STEPS] for t in env.task_list])
+    obs = []
+    for t in range(FREE_RUN_STEPS):
+        state = all_tasks.step(state, jnp.asarray(actions[:, t]))
+        obs.append(np.asarray(state.obs))
+    obs = np.stack(obs, axis=1)
+    for task in env.task_list:
+        out[task]["obs"] = obs[env.task_rows(task)]
+    return out
+
+
 def episode_free_run(all_tasks, tasks: Sequence[str]) -> dict[str, dict[str, np.ndarray]]:
     """mwjax's own episodes for the recorded ones in `EPISODES`: reset to each recorded goal, then
     the recorded actions, open loop. Per task: reset qpos/qvel/obs (R, ...) and per-step V2 reward
@@ -152,14 +188,7 @@ def episode_free_run(all_tasks, tasks: Sequence[str]) -> dict[str, dict[str, np.
     resets, steps = episodes[env.task_list[0]]["action"].shape[:2]
     actions = np.concatenate([e["action"] for e in episodes.values()])
     state = all_tasks.reset_to_recorded(first_variant=resets)
-    out = {}
-    for task in tasks:
-        kin = env.kinematics(state, task)
-        out[task] = {
-            "reset_qpos": np.asarray(kin.qpos),
-            "reset_qvel": np.asarray(kin.qvel),
-            "reset_obs": np.asarray(state.obs[env.task_rows(task)]),
-        }
+    out = _reset_arrays(env, state, tasks)
     reward, success = [], []
     for t in range(steps):
         state = all_tasks.step(state, jnp.asarray(actions[:, t]))
@@ -169,4 +198,51 @@ def episode_free_run(all_tasks, tasks: Sequence[str]) -> dict[str, dict[str, np.
     for task in tasks:
         rows = env.task_rows(task)
         out[task].update(reward=reward[rows], success=success[rows])
+    return out
+
+
+# Both free runs of the all-task env (`conftest.make_all_tasks`) in one child process: on the CPU
+# it compiles the 36-scene reset and step once for test_parity and test_episodes (~2 minutes), on
+# the second core while the parent runs the rest of the suite.
+_ALL_TASK_RUNS = """
+import sys
+import numpy as np
+sys.path.insert(0, "tests")
+from conftest import make_all_tasks
+from reference import all_task_runs
+all_tasks = make_all_tasks()
+runs = all_task_runs(all_tasks)
+np.savez(sys.argv[1], **{f"{run}/{task}/{key}": value for run, tasks in runs.items()
+                         for task, arrays in tasks.items() for key, value in arrays.items()})
+"""
+
+
+def all_task_runs(all_tasks, runs: Sequence[str] = ("parity", "episodes")) -> dict[str, dict]:
+    """The parity and/or the episode free runs of every task: {"parity": ..., "episodes": ...}."""
+    tasks = sorted(p.stem for p in EPISODES.glob("*-v3.npz"))
+    make = {"parity": parity_free_run, "episodes": lambda at: episode_free_run(at, tasks)}
+    return {run: make[run](all_tasks) for run in runs}
+
+
+def all_task_runs_child(workdir: Path) -> tuple[list[str], dict[str, str]]:
+    """The `child` mark's command of the tests that read `all_task_runs` (tests/children.py)."""
+    return [sys.executable, "-c", _ALL_TASK_RUNS, str(workdir / "runs.npz")], dict(os.environ)
+
+
+def free_runs(request, run: str) -> dict[str, dict[str, np.ndarray]]:
+    """`all_task_runs(...)[run]` for a module's tests: on the CPU read from the shared child,
+    which one of the module's tests marked `child(all_task_runs_child)` anchors; elsewhere (a GPU
+    holds one process's memory at a time) computed in this process."""
+    module = request.module
+    anchor = [i for i in request.session.items if i.module is module and i.get_closest_marker("child")]
+    if jax.default_backend() != "cpu" or not anchor:
+        return all_task_runs(request.getfixturevalue("all_tasks"), [run])[run]
+    result, workdir = children.result(anchor[0])
+    assert result.returncode == 0, result.stderr[-3000:]
+    out: dict[str, dict[str, np.ndarray]] = {}
+    with np.load(workdir / "runs.npz") as arrays:
+        for name in arrays.files:
+            which, task, key = name.split("/")
+            if which == run:
+                out.setdefault(task, {})[key] = arrays[name]
     return out

@@ -25,15 +25,9 @@ goals.
 
 from __future__ import annotations
 
-import os
-import sys
-from pathlib import Path
-
-import children
-import jax
 import numpy as np
 import pytest
-from reference import BASELINE, EPISODES, PERTURBED, episode_free_run, load_episodes
+from reference import BASELINE, EPISODES, PERTURBED, all_task_runs_child, free_runs, load_episodes
 from test_parity import assert_reset_matches
 
 from mwjax.tasks import TASKS
@@ -47,43 +41,18 @@ SUCCESS_MARGIN = 0.01
 RETURN_MARGIN = 0.02
 
 
-# On the CPU the free run (~4 minutes of stepping on a 2-core machine) runs in a child started
-# at collection, on the second core, while the parent runs the rest of the suite; these tests
-# run last (`late`) and read its arrays.
+# On the CPU the free run runs in a child started at collection (shared with test_parity's free
+# run: `reference.all_task_runs`), on the second core while the parent runs the rest of the suite;
+# these tests run last (`late`) and read its arrays.
 pytestmark = pytest.mark.late
-
-FREE_RUN = """
-import sys
-import numpy as np
-sys.path.insert(0, "tests")
-from conftest import make_all_tasks
-from reference import episode_free_run
-run = episode_free_run(make_all_tasks(), sys.argv[2:])
-np.savez(sys.argv[1], **{f"{t}/{k}": v for t, arrays in run.items() for k, v in arrays.items()})
-"""
-
-
-def _free_run_child(workdir: Path) -> tuple[list[str], dict[str, str]]:
-    return [sys.executable, "-c", FREE_RUN, str(workdir / "free_run.npz"), *TASK_NAMES], dict(os.environ)
 
 
 @pytest.fixture(scope="module")
 def free_run(request):
-    module = request.module
-    anchor = [i for i in request.session.items if i.module is module and i.get_closest_marker("child")]
-    if jax.default_backend() != "cpu" or not anchor:
-        return episode_free_run(request.getfixturevalue("all_tasks"), TASK_NAMES)
-    run, workdir = children.result(anchor[0])
-    assert run.returncode == 0, run.stderr[-3000:]
-    out: dict[str, dict[str, np.ndarray]] = {}
-    with np.load(workdir / "free_run.npz") as arrays:
-        for name in arrays.files:
-            task, key = name.split("/")
-            out.setdefault(task, {})[key] = arrays[name]
-    return out
+    return free_runs(request, "episodes")
 
 
-@pytest.mark.child.with_args(_free_run_child)
+@pytest.mark.child.with_args(all_task_runs_child)
 def test_the_free_run_covers_every_task(free_run):
     assert set(free_run) == set(TASK_NAMES)
     assert all(free_run[task]["success"].shape == free_run[task]["reward"].shape for task in TASK_NAMES)

@@ -13,7 +13,15 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
-from reference import engine_reset_gap, load, recorded_tasks, replay_recorded_states
+from reference import (
+    FREE_RUN_STEPS,
+    all_task_runs_child,
+    engine_reset_gap,
+    free_runs,
+    load,
+    recorded_tasks,
+    replay_recorded_states,
+)
 
 import mwjax
 from mwjax.benchmarks import MT10, sample_goal_variants
@@ -41,7 +49,6 @@ STALE_RESET_OBS = {
     "door-lock-v3": 1e-3,  # read after its in-reset mj_steps, before their kinematics
 }
 
-FREE_RUN_STEPS = 10
 # Warp's float32 solver vs the reference's float64 one, through 50 physics substeps.
 FREE_RUN_OBS_TOL = 5e-3
 # Where MuJoCo 3.17 itself (C, float64) departs from 3.3.0 more than that, and why (bounds: the
@@ -102,18 +109,11 @@ def replay_v1(replays):
 
 
 @pytest.fixture(scope="module")
-def free_run(all_tasks):
-    """mwjax's own trajectory from each recorded reset, driven by the recorded actions."""
-    env = all_tasks.env
-    state = all_tasks.reset_to_recorded(first_variant=0)
-    reset_state = state
-    actions = np.concatenate([load(t)["action"][:, :FREE_RUN_STEPS] for t in env.task_list])
-    obs = []
-    for t in range(FREE_RUN_STEPS):
-        state = all_tasks.step(state, jnp.asarray(actions[:, t]))
-        obs.append(np.asarray(state.obs))
-    obs = np.stack(obs, axis=1)
-    return env, reset_state, {t: obs[env.task_rows(t)] for t in env.task_list}
+def free_run(request):
+    """mwjax's own trajectory from each recorded reset, driven by the recorded actions: per task
+    the reset qpos/qvel/obs and `FREE_RUN_STEPS` observations (`reference.parity_free_run`; on
+    the CPU from the child that test_episodes shares)."""
+    return free_runs(request, "parity")
 
 
 @pytest.mark.parametrize("task", PORTED)
@@ -223,12 +223,11 @@ def assert_reset_matches(task: str, qpos: np.ndarray, qvel: np.ndarray, obs: np.
         )
 
 
+@pytest.mark.child.with_args(all_task_runs_child)
 @pytest.mark.parametrize("task", PORTED)
 def test_reset_state_and_obs(task, free_run):
-    env, state, _ = free_run
-    kin = env.kinematics(state, task)
-    obs = np.asarray(state.obs[env.task_rows(task)])
-    assert_reset_matches(task, np.asarray(kin.qpos), np.asarray(kin.qvel), obs, load(task))
+    run = free_run[task]
+    assert_reset_matches(task, run["reset_qpos"], run["reset_qvel"], run["reset_obs"], load(task))
 
 
 _ARM_JOINTS = [f"right_j{i}" for i in range(7)] + ["r_close", "l_close"]
@@ -274,12 +273,13 @@ def test_reset_to_goal_vectors_settles_as_the_goal_variants():
             np.testing.assert_array_equal(np.asarray(ours), np.asarray(theirs))
 
 
+@pytest.mark.child.with_args(all_task_runs_child)
 @pytest.mark.parametrize("task", PORTED)
 def test_free_running_drift(task, free_run):
-    _, _, obs = free_run
+    obs = free_run[task]["obs"]
     # The stacked previous frame is left out: at step 1 it is the reset frame (see test_reset_obs).
     current = np.setdiff1d(np.r_[0:18, 36:39], CHAOTIC_OBJECT_OBS.get(task, []))
-    error = np.abs(obs[task] - load(task)["obs"][:, :FREE_RUN_STEPS])
+    error = np.abs(obs - load(task)["obs"][:, :FREE_RUN_STEPS])
     bounds = ENGINE_VERSION_COLUMN_DRIFT.get(task, ())
     rest = np.setdiff1d(current, np.concatenate([np.arange(0)] + [columns for columns, _ in bounds]))
     for columns, bound in ((rest, ENGINE_VERSION_DRIFT.get(task, FREE_RUN_OBS_TOL)), *bounds):

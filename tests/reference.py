@@ -201,7 +201,26 @@ def episode_free_run(all_tasks, tasks: Sequence[str]) -> dict[str, dict[str, np.
     return out
 
 
-# Both free runs of the all-task env (`conftest.make_all_tasks`) in one child process: on the CPU
+# Steps of the short random-action run (`soak_run`; tests/test_soak.py has the long one).
+SOAK_STEPS = 20
+
+
+def soak_run(all_tasks) -> dict[str, dict[str, np.ndarray]]:
+    """Random goal variants and uniform random actions (NumPy seed 0) for `SOAK_STEPS` steps: per
+    task, whether each env's observation and reward were finite at each step, (envs, T)."""
+    env = all_tasks.env
+    rng = np.random.default_rng(0)
+    variants = rng.integers(len(next(iter(env.goal_variants.values()))), size=env.num_envs)
+    state = all_tasks.reset_with_variants(jnp.asarray(variants))
+    finite = []
+    for _ in range(SOAK_STEPS):
+        state = all_tasks.step(state, jnp.asarray(rng.uniform(-1, 1, (env.num_envs, 4)), jnp.float32))
+        finite.append(np.isfinite(np.asarray(state.obs)).all(axis=1) & np.isfinite(np.asarray(state.reward)))
+    finite = np.stack(finite, axis=1)
+    return {task: {"finite": finite[env.task_rows(task)]} for task in env.task_list}
+
+
+# The free runs of the all-task env (`conftest.make_all_tasks`) in one child process: on the CPU
 # it compiles the 36-scene reset and step once for test_parity and test_episodes (~2 minutes), on
 # the second core while the parent runs the rest of the suite.
 _ALL_TASK_RUNS = """
@@ -217,10 +236,10 @@ np.savez(sys.argv[1], **{f"{run}/{task}/{key}": value for run, tasks in runs.ite
 """
 
 
-def all_task_runs(all_tasks, runs: Sequence[str] = ("parity", "episodes")) -> dict[str, dict]:
-    """The parity and/or the episode free runs of every task: {"parity": ..., "episodes": ...}."""
+def all_task_runs(all_tasks, runs: Sequence[str] = ("parity", "episodes", "soak")) -> dict[str, dict]:
+    """The free runs `runs` of every task: {"parity": ..., "episodes": ..., "soak": ...}."""
     tasks = sorted(p.stem for p in EPISODES.glob("*-v3.npz"))
-    make = {"parity": parity_free_run, "episodes": lambda at: episode_free_run(at, tasks)}
+    make = {"parity": parity_free_run, "episodes": lambda at: episode_free_run(at, tasks), "soak": soak_run}
     return {run: make[run](all_tasks) for run in runs}
 
 

@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 
 import mwjax
+from mwjax import determinism
 
 ROLLOUT = """
 import os, sys, jax, jax.numpy as jnp, numpy as np, warp
@@ -32,8 +33,12 @@ print(os.environ.get("XLA_FLAGS", ""))
 
 
 def _child(workdir: Path) -> tuple[list[str], dict[str, str]]:
-    environ = {k: v for k, v in os.environ.items() if k not in ("XLA_FLAGS", "MWJAX_DETERMINISTIC")}
-    return [sys.executable, "-c", ROLLOUT, str(workdir / "obs.npy")], {**environ, "MWJAX_DETERMINISTIC": "1"}
+    # The parent's XLA flags (the same compiler settings: the rollouts are compared bit for bit),
+    # less the one the switch must add by itself.
+    environ = {k: v for k, v in os.environ.items() if k != "MWJAX_DETERMINISTIC"}
+    flags = [f for f in environ.get("XLA_FLAGS", "").split() if f != determinism.XLA_FLAG]
+    environ |= {"XLA_FLAGS": " ".join(flags), "MWJAX_DETERMINISTIC": "1"}
+    return [sys.executable, "-c", ROLLOUT, str(workdir / "obs.npy")], environ
 
 
 @pytest.mark.child.with_args(_child)

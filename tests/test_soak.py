@@ -3,7 +3,8 @@
 The full check is 10,000 random-action steps per task (20 envs x 500 steps, so every env also
 autoresets) in both reward versions. Warp on a 2-core CPU runs the 50-task set at under 100 env
 steps/s, so that takes hours there: it is marked slow (runs on a GPU or with MWJAX_SLOW=1). CI runs
-the short version on the compiled all-task env the parity tests already built.
+the short version on the compiled all-task env that the parity and episode tests share (in their
+child process on the CPU: `reference.all_task_runs`).
 """
 
 from __future__ import annotations
@@ -12,26 +13,21 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from reference import SOAK_STEPS, all_task_runs_child, free_runs
 
 import mwjax
 from mwjax.tasks import TASKS
 
-SHORT_STEPS = 20
 FULL_ENVS_PER_TASK, FULL_STEPS = 20, 500
 
 
-def test_short_random_rollout_stays_finite(all_tasks):
-    env = all_tasks.env
-    rng = np.random.default_rng(0)
-    variants = rng.integers(len(next(iter(env.goal_variants.values()))), size=env.num_envs)
-    state = all_tasks.reset_with_variants(jnp.asarray(variants))
-    for t in range(SHORT_STEPS):
-        action = jnp.asarray(rng.uniform(-1, 1, (env.num_envs, 4)), jnp.float32)
-        state = all_tasks.step(state, action)
-        bad = ~(np.isfinite(np.asarray(state.obs)).all(axis=1) & np.isfinite(np.asarray(state.reward)))
-        assert not bad.any(), (
-            f"non-finite at step {t} in {sorted({env.task_names[i] for i in np.flatnonzero(bad)})}"
-        )
+@pytest.mark.child.with_args(all_task_runs_child)
+def test_short_random_rollout_stays_finite(request):
+    run = free_runs(request, "soak")  # `reference.soak_run`: SOAK_STEPS steps of every task
+    for t in range(SOAK_STEPS):
+        bad = sorted(task for task, arrays in run.items() if not arrays["finite"][:, t].all())
+        assert not bad, f"non-finite at step {t} in {bad}"
+    assert set(run) == set(TASKS)
 
 
 @pytest.mark.slow

@@ -221,8 +221,8 @@ def soak_run(all_tasks) -> dict[str, dict[str, np.ndarray]]:
 
 
 # The free runs of the all-task env (`conftest.make_all_tasks`) in one child process: on the CPU
-# it compiles the 36-scene reset and step once for test_parity and test_episodes (~2 minutes), on
-# the second core while the parent runs the rest of the suite.
+# it compiles the 36-scene reset and step once for test_parity, test_episodes and test_soak (~2
+# minutes), on the second core while the parent runs the rest of the suite.
 _ALL_TASK_RUNS = """
 import sys
 import numpy as np

@@ -80,14 +80,16 @@ def contacts(data: object, order: bool) -> dict[str, np.ndarray]:
 
 def diff_forward(first: object, second: object) -> list[dict]:
     rows = []
+    valid = valid_rows(first)
+    same_rows = np.array_equal(valid, valid_rows(second))
     for stage, name in PIPELINE:
         a, b = field(first, name), field(second, name)
         if name.startswith("efc__") and a.ndim >= 2:
-            mask_a, mask_b = valid_rows(first), valid_rows(second)
-            if not np.array_equal(mask_a, mask_b):
+            if not same_rows:
                 rows.append({"stage": stage, "field": name, "identical": False, "max_abs_diff": None})
                 continue
-            a, b = np.where(_expand(mask_a, a), a, 0), np.where(_expand(mask_b, b), b, 0)
+            keep = _expand(valid, a)
+            a, b = np.where(keep, a, 0), np.where(keep, b, 0)
         rows.append({"stage": stage, "field": name, **compare(a, b, per_world=name != "nacon")})
         if name == "nacon":
             for order in (False, True):

@@ -155,10 +155,16 @@ def side_by_side(counts: list[int], gpus: int) -> list[list[int]]:
     return waves[::-1]
 
 
+def mem_fraction(sharing: int) -> str:
+    """JAX's memory fraction in each child: XLA_PYTHON_CLIENT_MEM_FRACTION if set, else 0.45
+    split between the `sharing` processes on the busiest GPU."""
+    return os.environ.get("XLA_PYTHON_CLIENT_MEM_FRACTION", f"{0.45 / sharing:.2f}")
+
+
 def child_env(args: argparse.Namespace, gpus: list[int], n: int, sharing: int) -> dict:
     """A child's environment; `sharing` processes share its busiest GPU."""
     env = dict(os.environ)
-    env.setdefault("XLA_PYTHON_CLIENT_MEM_FRACTION", f"{0.45 / sharing:.2f}")
+    env["XLA_PYTHON_CLIENT_MEM_FRACTION"] = mem_fraction(sharing)
     if args.cpu:
         env["JAX_PLATFORMS"] = "cpu"
         env["XLA_FLAGS"] = f"{env.get('XLA_FLAGS', '')} --xla_force_host_platform_device_count={n}".strip()
@@ -205,6 +211,7 @@ def main() -> None:
         sys.exit(f"--strong: --envs-per-task {args.envs_per_task} must split evenly over {counts} devices")
     if args.together and (args.cpu or args.sequential):
         sys.exit("--together shares GPUs: not with --cpu or --sequential")
+    sharing = len(counts) if args.together else 1
     if args.together:
         waves = [counts]
     elif args.cpu or args.sequential:
@@ -225,7 +232,6 @@ def main() -> None:
             for n in wave:
                 command = [sys.executable, str(script), *forwarded, "--child", str(n), "--lock", lock.name]
                 gpus = list(range(n)) if args.together else list(range(first, first + n))
-                sharing = len(wave) if args.together else 1
                 procs[n] = subprocess.Popen(
                     command, env=child_env(args, gpus, n, sharing), stdout=subprocess.PIPE, text=True
                 )
@@ -259,9 +265,7 @@ def main() -> None:
         "date": now.isoformat(timespec="seconds"),
         "host": platform.node(),
         "command": shlex.join([sys.executable, *sys.argv]),
-        "xla_mem_fraction": os.environ.get(
-            "XLA_PYTHON_CLIENT_MEM_FRACTION", f"{0.45 / (len(counts) if args.together else 1):.2f}"
-        ),
+        "xla_mem_fraction": mem_fraction(sharing),
         "graph_mode": args.graph_mode,
         "wall_s": time.perf_counter() - start,
         "results": rows,

@@ -8,6 +8,9 @@ env steps with uniform random actions drawn on device (every env autoresets once
 warm up, then timed `--repeats` times; the best is the figure. Default physics. A row whose
 envs overflowed a physics buffer (`info["physics_overflow"]`, Warp dropped contacts or
 constraint rows) is flagged `valid: false` and its figure not quoted as throughput.
+`--stagger W` is throughput.py's too: episode counters spread over 0..499, a W-step warm-up,
+then a W-step timed window in which resets fall at their long-run rate (MT50's documented
+protocol, which keeps 1, 2 and 4 GPUs inside one device call).
 
 Scaling is weak by default: every device count gets `--envs-per-task` envs per task *per
 device*, so each GPU steps the same batch and perfect scaling doubles the rate with the devices.
@@ -40,7 +43,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from common import RESULTS, commit
+from common import RESULTS, commit, staggered
 
 
 def gpu_count() -> int:
@@ -71,6 +74,7 @@ def measure(args: argparse.Namespace) -> dict:
     if len(devices) < n:
         raise SystemExit(f"{n} devices asked for, {len(jax.local_devices())} visible")
     per_task = args.envs_per_task if args.strong else args.envs_per_task * n
+    steps = args.steps if args.stagger is None else args.stagger
     physics = mwjax.PhysicsConfig(graph_mode=args.graph_mode)
     t0 = time.perf_counter()
     env = mwjax.make(
@@ -87,12 +91,14 @@ def measure(args: argparse.Namespace) -> dict:
             return (state, successes + state.info["success"].sum(), overflowed | dropped), None
 
         init = (state, jnp.zeros((), jnp.int32), jnp.zeros(env.num_envs, bool))
-        (state, successes, overflowed), _ = jax.lax.scan(body, init, jax.random.split(key, args.steps))
+        (state, successes, overflowed), _ = jax.lax.scan(body, init, jax.random.split(key, steps))
         return state, successes, overflowed.sum()
 
     t0 = time.perf_counter()
     state = jax.block_until_ready(jax.jit(env.reset)(jax.random.key(0)))
     reset_compile_s = time.perf_counter() - t0
+    if args.stagger is not None:
+        state = staggered(state, env.max_episode_steps)
     t0 = time.perf_counter()
     compiled = jax.jit(rollout, donate_argnums=0).lower(state, jax.random.key(1)).compile()
     compile_s = time.perf_counter() - t0
@@ -112,7 +118,7 @@ def measure(args: argparse.Namespace) -> dict:
             times.append(time.perf_counter() - t0)
             print(f"[{n} device(s)] timed rollout: {times[-1]:.0f}s", file=sys.stderr, flush=True)
             overflow_envs = max(overflow_envs, int(overflow))
-    rate = env.num_envs * args.steps / min(times)
+    rate = env.num_envs * steps / min(times)
     return {
         "benchmark": args.set,
         "devices": n,
@@ -120,7 +126,8 @@ def measure(args: argparse.Namespace) -> dict:
         "platform": devices[0].platform,
         "num_envs": env.num_envs,
         "envs_per_device": env.num_envs // n,
-        "steps_per_rollout": args.steps,
+        "steps_per_rollout": steps,
+        "stagger": args.stagger,
         "env_steps_per_s": rate,
         "env_steps_per_s_per_device": rate / n,
         "rollout_s": times,
@@ -183,6 +190,9 @@ def main() -> None:
     parser.add_argument("--strong", action="store_true", help="the same total batch on every count")
     parser.add_argument("--steps", type=int, default=500)
     parser.add_argument("--repeats", type=int, default=1)
+    parser.add_argument(
+        "--stagger", type=int, metavar="W", default=None, help="staggered episodes, W-step window"
+    )
     parser.add_argument("--graph-mode", default=None, help="PhysicsConfig.graph_mode (warp, jax, none)")
     parser.add_argument("--cpu", action="store_true", help="host devices instead of GPUs (a smoke run)")
     parser.add_argument(
@@ -209,6 +219,8 @@ def main() -> None:
         print(f"skipping device counts {skipped}: {available} GPU(s) visible", flush=True)
     if args.strong and any(args.envs_per_task % n for n in counts):
         sys.exit(f"--strong: --envs-per-task {args.envs_per_task} must split evenly over {counts} devices")
+    if args.stagger is not None and not 1 <= args.stagger <= 500:
+        parser.error("--stagger must be in [1, 500]")
     if args.together and (args.cpu or args.sequential):
         sys.exit("--together shares GPUs: not with --cpu or --sequential")
     sharing = len(counts) if args.together else 1
@@ -223,6 +235,7 @@ def main() -> None:
     forwarded = ["--set", args.set, "--envs-per-task", str(args.envs_per_task), "--steps", str(args.steps)]
     forwarded += ["--repeats", str(args.repeats)] + (["--strong"] if args.strong else [])
     forwarded += ["--graph-mode", args.graph_mode] if args.graph_mode else []
+    forwarded += ["--stagger", str(args.stagger)] if args.stagger is not None else []
     start = time.perf_counter()
     rows = []
     with tempfile.NamedTemporaryFile(prefix="mwjax-multi-gpu-", suffix=".lock") as lock:
@@ -259,6 +272,7 @@ def main() -> None:
         "scaling": [r["scaling"] for r in rows],
         "valid": all(r["valid"] for r in rows) and len(rows) == len(counts),
         "weak_scaling": not args.strong,
+        "stagger": args.stagger,
         "waves": waves,
         "together": args.together,
         "commit": commit(),

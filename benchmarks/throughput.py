@@ -41,7 +41,7 @@ from pathlib import Path
 import jax
 import jax.numpy as jnp
 import numpy as np
-from common import build_kernels, provenance, result_path, rows_arg, tasks_arg
+from common import build_kernels, provenance, result_path, rows_arg, staggered, tasks_arg
 
 import mwjax
 from mwjax.benchmarks import task_names
@@ -127,8 +127,7 @@ def measure(
     state = jax.block_until_ready(jax.jit(env.reset)(jax.random.key(0)))
     reset_compile_s = time.perf_counter() - t0
     if stagger is not None:  # each env at a different point of its episode
-        offsets = jax.random.randint(jax.random.key(1), (env.num_envs,), 0, env.max_episode_steps)
-        state = dataclasses.replace(state, steps=offsets.astype(state.steps.dtype))
+        state = staggered(state, env.max_episode_steps)
     t0 = time.perf_counter()
     compiled = run.lower(state, jax.random.key(1)).compile()
     compile_s = time.perf_counter() - t0

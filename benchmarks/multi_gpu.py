@@ -163,9 +163,11 @@ def side_by_side(counts: list[int], gpus: int) -> list[list[int]]:
 
 
 def mem_fraction(sharing: int) -> str:
-    """JAX's memory fraction in each child: XLA_PYTHON_CLIENT_MEM_FRACTION if set, else 0.45
-    split between the `sharing` processes on the busiest GPU."""
-    return os.environ.get("XLA_PYTHON_CLIENT_MEM_FRACTION", f"{0.45 / sharing:.2f}")
+    """JAX's memory fraction in each child: XLA_PYTHON_CLIENT_MEM_FRACTION (default 0.45), the
+    share of a GPU that JAX should take, split between the `sharing` processes on the busiest GPU
+    (each child's JAX would otherwise take the whole share and leave its neighbours nothing)."""
+    total = float(os.environ.get("XLA_PYTHON_CLIENT_MEM_FRACTION", "0.45"))
+    return f"{total / sharing:.3f}"
 
 
 def child_env(args: argparse.Namespace, gpus: list[int], n: int, sharing: int) -> dict:

@@ -28,6 +28,7 @@ from __future__ import annotations
 import argparse
 import concurrent.futures
 import dataclasses
+import importlib.util
 import json
 import multiprocessing
 import os
@@ -312,6 +313,8 @@ def main() -> None:
     args = parser.parse_args()
     if args.stagger is not None and not 1 <= args.stagger <= EPISODE:
         parser.error(f"--stagger must be in [1, {EPISODE}]")
+    if args.plot and importlib.util.find_spec("matplotlib") is None:
+        parser.error("--plot needs matplotlib: pip install 'mwjax[plots]'")
     settings = {
         "contacts_per_env": args.contacts,
         "constraints_per_env": args.constraints,

@@ -30,6 +30,7 @@ Needs the `train` extra (optax); the PNG needs matplotlib, the videos the `video
 from __future__ import annotations
 
 import argparse
+import contextlib
 import dataclasses
 import datetime
 import json
@@ -49,7 +50,7 @@ import optax
 from jax.sharding import PartitionSpec as P
 
 import mwjax
-from mwjax import rendering
+from mwjax import progress, rendering
 from mwjax.evaluation import evaluator
 from mwjax.observation import OBS_SIZE
 from mwjax.sharding import AXIS
@@ -597,8 +598,9 @@ def train(
     with `time_learner` time the learner alone against the last chunk of updates, and with
     `video` (a folder) write one episode of the trained policy on each task as `<task>.mp4`."""
     start = time.perf_counter()
-    trainer = Trainer(config)
-    carry = trainer.init(jax.random.key(config.seed))
+    with progress.phase("building the envs and the first state"):
+        trainer = Trainer(config)
+        carry = trainer.init(jax.random.key(config.seed))
     curve: list[dict] = []
     updates = 0
     budget = minutes * 60
@@ -613,8 +615,11 @@ def train(
         if max_updates is None and elapsed + chunk_s > budget:
             break
         t0 = time.perf_counter()
-        carry, metrics = trainer.train_chunk(carry, n)
-        metrics = jax.device_get(metrics)
+        # The first chunk compiles the whole update loop (minutes when sharded): shown, not silent.
+        first = f"compiling (XLA) and running the first {n} updates"
+        with progress.phase(first) if not updates else contextlib.nullcontext():
+            carry, metrics = trainer.train_chunk(carry, n)
+            metrics = jax.device_get(metrics)
         chunk_s = time.perf_counter() - t0 if updates else 0.0
         updates += n
         rates = metrics.successes / np.maximum(metrics.episodes, 1)
@@ -826,8 +831,11 @@ def main() -> None:
         RESULTS / f"train-{args.set}-ppo-{summary['device']}-{summary['date'][:10]}".replace(" ", "_")
     )
     Path(f"{stem}.json").write_text(json.dumps(summary, indent=2))
-    _plot(runs, Path(f"{stem}.png"))
-    print(f"-> {stem}.json, {stem}.png")
+    try:
+        _plot(runs, Path(f"{stem}.png"))
+    except ImportError:  # matplotlib is optional (the `plots` extra): the run's JSON is what counts
+        print("matplotlib not installed (pip install 'mwjax[plots]'): no PNG", flush=True)
+    print(f"-> {stem}.json" + ("" if not Path(f"{stem}.png").exists() else f", {stem}.png"))
 
 
 if __name__ == "__main__":

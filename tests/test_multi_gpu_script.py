@@ -1,0 +1,39 @@
+"""`benchmarks/multi_gpu.py`'s planning: which device counts share a wave, and JAX's memory share."""
+
+from __future__ import annotations
+
+import importlib.util
+import sys
+from pathlib import Path
+
+import pytest
+
+BENCHMARKS = Path(__file__).parents[1] / "benchmarks"
+
+
+@pytest.fixture(scope="module")
+def multi_gpu():
+    sys.path.insert(0, str(BENCHMARKS))  # the script imports its sibling `common`
+    try:
+        spec = importlib.util.spec_from_file_location("multi_gpu", BENCHMARKS / "multi_gpu.py")
+        module = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(module)
+        yield module
+    finally:
+        sys.path.remove(str(BENCHMARKS))
+
+
+def test_counts_that_fit_side_by_side_share_a_wave(multi_gpu):
+    assert multi_gpu.side_by_side([1, 2, 4], gpus=8) == [[1, 2, 4]]
+    assert multi_gpu.side_by_side([1, 2, 4], gpus=4) == [[1, 2], [4]]
+    assert multi_gpu.side_by_side([1, 2], gpus=2) == [[1], [2]]
+
+
+def test_processes_sharing_a_gpu_split_the_memory_share_they_were_given(multi_gpu, monkeypatch):
+    monkeypatch.delenv("XLA_PYTHON_CLIENT_MEM_FRACTION", raising=False)
+    assert float(multi_gpu.mem_fraction(1)) == pytest.approx(0.45)
+    assert float(multi_gpu.mem_fraction(3)) == pytest.approx(0.15)
+    # A fraction set for the whole run (as the GPU instructions advise) is split too: three
+    # processes each taking 0.45 of one GPU ran out of memory.
+    monkeypatch.setenv("XLA_PYTHON_CLIENT_MEM_FRACTION", "0.6")
+    assert float(multi_gpu.mem_fraction(3)) == pytest.approx(0.2)

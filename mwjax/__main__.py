@@ -5,6 +5,9 @@
    500), next to the reference experts' success on the same goals.
 2. Throughput under random actions: compiled, run once to warm up (Warp's first-run kernel
    builds land there), then timed. Compile time is reported on its own, never as throughput.
+   Episodes are staggered (each env's counter starts at a random point of its 500 steps), so
+   the short timed window (GPU: 100 steps) sees resets at their long-run rate, as
+   `benchmarks/throughput.py --stagger` does; that script is the full protocol.
 
 On a GPU (set XLA_PYTHON_CLIENT_MEM_FRACTION=0.45 so that Warp gets memory) the experts run 50
 episodes per MT10 task. On the CPU, where one env step of one scene's physics takes ~0.1 s, they
@@ -104,7 +107,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument(
         "--steps",
         type=_positive_int,
-        help="env steps of the timed throughput rollout (default: GPU 500, CPU 5)",
+        help="env steps of the timed throughput window, episodes staggered (default: GPU 100, CPU 5)",
     )
     parser.add_argument(
         "--seed",
@@ -165,7 +168,7 @@ def main(argv: Sequence[str] | None = None) -> None:
     if not args.no_experts:
         experts(tasks, args.episodes or (50 if on_gpu else 1), args.seed)
     envs_per_task = args.envs_per_task or (1024 if on_gpu else 2)
-    steps = args.steps or (500 if on_gpu else 5)
+    steps = args.steps or (100 if on_gpu else 5)
     with progress.phase(f"building {_label(tasks)} with {envs_per_task} envs per task"):
         env = mwjax.make(tasks, envs_per_task=envs_per_task, seed=args.seed)
     throughput(env, steps, args.seed)
@@ -252,12 +255,15 @@ def throughput(env: Any, steps: int, seed: int) -> None:
     with progress.phase("compiling the reset and the random-action rollout (XLA)"):
         start = time.perf_counter()
         state = jax.block_until_ready(jax.jit(env.reset)(key))
+        offsets = jax.random.randint(key, (env.num_envs,), 0, env.max_episode_steps)
+        state = dataclasses.replace(state, steps=offsets.astype(state.steps.dtype))
         compiled = jax.jit(rollout).lower(state, key).compile()
         compile_s = time.perf_counter() - start
     with progress.phase(f"rollout of {steps} steps x {env.num_envs} envs: warm-up run, then timed run"):
         timing = timed(lambda: jax.block_until_ready(compiled(state, key)), env.num_envs * steps)
     print(
-        f"throughput, random actions: {env.num_envs} envs ({len(env.task_list)} tasks), {steps} steps: "
+        f"throughput, random actions: {env.num_envs} envs ({len(env.task_list)} tasks), "
+        f"{steps}-step window of staggered episodes (autoreset inside): "
         f"{timing.steps_per_second:,.0f} env steps/s (timed run {timing.timed_run_s:.2f} s; "
         f"compile {compile_s:.1f} s and warm-up run {timing.first_run_s:.2f} s not counted)",
         flush=True,

@@ -9,6 +9,7 @@ arm's action and observation layout (`mwjax.sawyer`), and reset placement (`mwja
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 import functools
 from collections.abc import Mapping, Sequence
@@ -67,20 +68,22 @@ class State:
 class Env:
     """A batched Meta-World task set. Build it with `mwjax.make` (or from an `EnvConfig`)."""
 
+    # Config fields read only when `step` and `observe` are traced: `replace` changing these alone
+    # shares the built physics, task rows and goals, which are most of `make`'s time.
+    _TRACE_TIME_FIELDS = frozenset(
+        {"reward_version", "max_episode_steps", "autoreset", "terminate_on_success"}
+    )
+
     def __init__(self, config: EnvConfig) -> None:
-        self.config = config
+        self._configure(config)
         bench = benchmarks.benchmark(config.tasks, config.task)
         variants = goals.set_variants(config, bench)
         n_variants = goals.variant_count(config, variants)
         self.benchmark = bench
         self.split = config.split
-        self.reward_version = config.reward_version
         self.partially_observable = (
             bench.meta_learning if config.partially_observable is None else config.partially_observable
         )
-        self.max_episode_steps = config.max_episode_steps
-        self.autoreset = config.autoreset
-        self.terminate_on_success = config.terminate_on_success
         self.goal_sampling = config.goal_sampling or ("on_request" if bench.meta_learning else "on_reset")
         self.envs_per_task = envs_per_task = config.envs_per_task
 
@@ -107,6 +110,14 @@ class Env:
             variants, self.task_list, self.task_ids, self.goal_sampling, envs_per_task, n_variants
         )
         self.sawyer = Sawyer.of([r.spec for r in rows], envs_per_task, self.partially_observable)
+
+    def _configure(self, config: EnvConfig) -> None:
+        """The trace-time settings (`_TRACE_TIME_FIELDS`) from `config`."""
+        self.config = config
+        self.reward_version = config.reward_version
+        self.max_episode_steps = config.max_episode_steps
+        self.autoreset = config.autoreset
+        self.terminate_on_success = config.terminate_on_success
 
     # ----------------------------------------------------------------------------------------
     # Public functional API
@@ -169,9 +180,14 @@ class Env:
 
     def replace(self, **changes: Any) -> Env | ShardedEnv:
         """The same env with some config fields changed (a new, separately compiled env);
-        `devices=` splits it over devices, as `make`'s."""
+        `devices=` splits it over devices, as `make`'s. Changing only the reward version, episode
+        length, autoreset or termination reuses this env's built physics and goals."""
         devices = changes.pop("devices", None)
         config = dataclasses.replace(self.config, **changes)
+        if devices is None and changes.keys() <= self._TRACE_TIME_FIELDS:
+            env = copy.copy(self)
+            env._configure(config)
+            return env
         if devices is None:
             return Env(config)
         from mwjax.sharding import ShardedEnv

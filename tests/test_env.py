@@ -218,6 +218,17 @@ def test_constraint_buffers_hold_twice_what_mujoco_c_reaches_in_each_scene(env):
     assert {fixed.physics.constraint_rows(g.scene) for g in fixed.physics.groups} == {512}
 
 
+def test_replace_reuses_the_built_physics_only_for_settings_read_at_trace_time(env):
+    """`replace(reward_version=...)` (and episode length, autoreset, termination) shares the
+    built physics and goals and leaves the original as it was; test_parity's V1 rewards, computed
+    by such a replaced env, check that it steps by its own settings."""
+    v1 = env.replace(reward_version="v1", max_episode_steps=HORIZON + 1)
+    assert v1.physics is env.physics and v1.goals is env.goals
+    assert (v1.reward_version, v1.max_episode_steps, v1.config.reward_version) == ("v1", HORIZON + 1, "v1")
+    assert (env.reward_version, env.max_episode_steps, env.config.reward_version) == ("v2", HORIZON, "v2")
+    assert env.replace(envs_per_task=1).physics is not env.physics
+
+
 def test_convex_collider_slots_hold_every_candidate_pair_and_a_shortfall_is_reported():
     """Each env gets a slot for every geom pair of its scene's busiest convex type pair (so no env
     can run out), never fewer than twice what MuJoCo C had in contact; one slot overflows."""

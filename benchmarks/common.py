@@ -83,16 +83,3 @@ def build_kernels(tasks: str | list[str], physics: object = None) -> float | Non
     from mwjax import kernels
 
     return kernels.build(tasks, physics)[1]
-
-
-def staggered(state: object, max_episode_steps: int) -> object:
-    """`state` with every env's episode counter at a random point of 0..max_episode_steps-1
-    (`--stagger`): resets then fall in every step at their long-run rate. The counters keep the
-    sharding of the ones they replace, so a compiled sharded rollout accepts them."""
-    import dataclasses
-
-    import jax
-
-    offsets = jax.random.randint(jax.random.key(1), state.steps.shape, 0, max_episode_steps)
-    offsets = jax.device_put(offsets.astype(state.steps.dtype), state.steps.sharding)
-    return dataclasses.replace(state, steps=offsets)

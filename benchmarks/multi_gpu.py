@@ -43,7 +43,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from common import RESULTS, commit, staggered
+from common import RESULTS, commit
 
 
 def gpu_count() -> int:
@@ -67,6 +67,7 @@ def measure(args: argparse.Namespace) -> dict:
     import jax.numpy as jnp
 
     import mwjax
+    from mwjax.env import staggered
     from mwjax.physics import DROPPED
 
     n = args.child
@@ -98,7 +99,7 @@ def measure(args: argparse.Namespace) -> dict:
     state = jax.block_until_ready(jax.jit(env.reset)(jax.random.key(0)))
     reset_compile_s = time.perf_counter() - t0
     if args.stagger is not None:
-        state = staggered(state, env.max_episode_steps)
+        state = staggered(state, env.max_episode_steps, jax.random.key(1))
     t0 = time.perf_counter()
     compiled = jax.jit(rollout, donate_argnums=0).lower(state, jax.random.key(1)).compile()
     compile_s = time.perf_counter() - t0

@@ -42,10 +42,11 @@ from pathlib import Path
 import jax
 import jax.numpy as jnp
 import numpy as np
-from common import build_kernels, provenance, result_path, rows_arg, staggered, tasks_arg
+from common import build_kernels, provenance, result_path, rows_arg, tasks_arg
 
 import mwjax
 from mwjax.benchmarks import task_names
+from mwjax.env import staggered
 from mwjax.physics import DROPPED
 from mwjax.wrappers.gymnasium import make_vector
 
@@ -128,7 +129,7 @@ def measure(
     state = jax.block_until_ready(jax.jit(env.reset)(jax.random.key(0)))
     reset_compile_s = time.perf_counter() - t0
     if stagger is not None:  # each env at a different point of its episode
-        state = staggered(state, env.max_episode_steps)
+        state = staggered(state, env.max_episode_steps, jax.random.key(1))
     t0 = time.perf_counter()
     compiled = run.lower(state, jax.random.key(1)).compile()
     compile_s = time.perf_counter() - t0

@@ -243,6 +243,7 @@ def throughput(env: Any, steps: int, seed: int) -> None:
     import jax
 
     from mwjax import progress
+    from mwjax.env import staggered
 
     def rollout(state: Any, key: jax.Array) -> Any:
         def body(state: Any, key: jax.Array) -> tuple[Any, None]:
@@ -255,8 +256,7 @@ def throughput(env: Any, steps: int, seed: int) -> None:
     with progress.phase("compiling the reset and the random-action rollout (XLA)"):
         start = time.perf_counter()
         state = jax.block_until_ready(jax.jit(env.reset)(key))
-        offsets = jax.random.randint(key, (env.num_envs,), 0, env.max_episode_steps)
-        state = dataclasses.replace(state, steps=offsets.astype(state.steps.dtype))
+        state = staggered(state, env.max_episode_steps, key)
         compiled = jax.jit(rollout).lower(state, key).compile()
         compile_s = time.perf_counter() - start
     with progress.phase(f"rollout of {steps} steps x {env.num_envs} envs: warm-up run, then timed run"):

@@ -65,6 +65,16 @@ class State:
         return jnp.take_along_axis(self.goal_order, self.goal_cursor[:, None], axis=1)[:, 0]
 
 
+def staggered(state: State, max_episode_steps: int, key: Array) -> State:
+    """`state` with every env's episode counter at a random point of 0..max_episode_steps-1, so
+    that a window of steps shorter than an episode sees resets at their long-run rate (the
+    benchmarks' `--stagger`, the main job's throughput). The counters keep the sharding of the
+    ones they replace, so a program compiled for a sharded state accepts them."""
+    offsets = jax.random.randint(key, state.steps.shape, 0, max_episode_steps)
+    offsets = jax.device_put(offsets.astype(state.steps.dtype), state.steps.sharding)
+    return dataclasses.replace(state, steps=offsets)
+
+
 class Env:
     """A batched Meta-World task set. Build it with `mwjax.make` (or from an `EnvConfig`)."""
 

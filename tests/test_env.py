@@ -20,6 +20,7 @@ from states import assert_same_state
 import mwjax
 from mwjax import benchmarks, policies
 from mwjax.benchmarks import MT10
+from mwjax.env import staggered
 from mwjax.models import MODELS_DIR, constraint_rows, load_scene, scene_names
 from mwjax.physics import DROPPED, PhysicsOverflowWarning, convex_candidates
 from mwjax.tasks import TASKS as TASKS_REGISTRY
@@ -216,6 +217,17 @@ def test_constraint_buffers_hold_twice_what_mujoco_c_reaches_in_each_scene(env):
         assert env.physics.constraint_rows(group.scene) == constraint_rows(group.scene)
     fixed = env.replace(physics=mwjax.PhysicsConfig(constraints_per_env=512))
     assert {fixed.physics.constraint_rows(g.scene) for g in fixed.physics.groups} == {512}
+
+
+def test_staggered_episodes_end_where_their_counters_put_them(env, compiled, episode):
+    start = episode[0]
+    state = staggered(start, HORIZON, jax.random.key(5))
+    counters = np.asarray(state.steps)
+    assert state.steps.dtype == start.steps.dtype and ((counters >= 0) & (counters < HORIZON)).all()
+    assert len(set(counters.tolist())) > 1  # spread, not one shared offset
+    np.testing.assert_array_equal(np.asarray(state.obs), np.asarray(start.obs))  # nothing else moves
+    stepped = compiled[1](state, jnp.zeros((env.num_envs, 4)))
+    np.testing.assert_array_equal(np.asarray(stepped.truncated), counters == HORIZON - 1)
 
 
 def test_replace_reuses_the_built_physics_only_for_settings_read_at_trace_time(env):

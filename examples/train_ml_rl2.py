@@ -719,11 +719,8 @@ def main() -> None:
         / f"train-{runs[0]['name']}-rl2-{summary['device']}-{summary['date'][:10]}".replace(" ", "_")
     )
     Path(f"{stem}.json").write_text(json.dumps(summary, indent=2))
-    try:
-        _plot(runs, Path(f"{stem}.png"))
-    except ImportError:  # matplotlib is optional (the `plots` extra)
-        print("matplotlib not installed: no PNG", flush=True)
-    print(f"-> {stem}.json" + ("" if not Path(f"{stem}.png").exists() else f", {stem}.png"))
+    plotted = ppo.save_plot(_plot, runs, Path(f"{stem}.png"))
+    print(f"-> {stem}.json" + (f", {stem}.png" if plotted else ""))
 
 
 if __name__ == "__main__":

@@ -40,6 +40,7 @@ import shlex
 import subprocess
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any, Literal, NamedTuple
 
@@ -685,6 +686,17 @@ def _progress(
     )
 
 
+def save_plot(plot: Callable[[list[dict], Path], None], runs: list[dict], path: Path) -> bool:
+    """`plot(runs, path)` if matplotlib (optional: the `plots` extra) is there; the run's JSON is
+    what counts, so without it the run still ends cleanly, saying so. True if it plotted."""
+    try:
+        plot(runs, path)
+    except ImportError:
+        print("matplotlib not installed (pip install 'mwjax[plots]'): no PNG", flush=True)
+        return False
+    return True
+
+
 def _plot(runs: list[dict], path: Path) -> None:
     import matplotlib
 
@@ -831,11 +843,8 @@ def main() -> None:
         RESULTS / f"train-{args.set}-ppo-{summary['device']}-{summary['date'][:10]}".replace(" ", "_")
     )
     Path(f"{stem}.json").write_text(json.dumps(summary, indent=2))
-    try:
-        _plot(runs, Path(f"{stem}.png"))
-    except ImportError:  # matplotlib is optional (the `plots` extra): the run's JSON is what counts
-        print("matplotlib not installed (pip install 'mwjax[plots]'): no PNG", flush=True)
-    print(f"-> {stem}.json" + ("" if not Path(f"{stem}.png").exists() else f", {stem}.png"))
+    plotted = save_plot(_plot, runs, Path(f"{stem}.png"))
+    print(f"-> {stem}.json" + (f", {stem}.png" if plotted else ""))
 
 
 if __name__ == "__main__":

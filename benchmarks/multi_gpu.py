@@ -2,6 +2,7 @@
 
     python benchmarks/multi_gpu.py                      # MT50, 1 2 4 GPUs, 1,024 envs per task per GPU
     python benchmarks/multi_gpu.py --set MT1:reach-v3 --envs-per-task 2 --steps 5 --cpu  # smoke run
+    python benchmarks/multi_gpu.py --stagger 100 --processes  # one process per GPU
 
 The protocol is `benchmarks/throughput.py`'s: a jitted `lax.scan` rollout of `--steps` (500)
 env steps with uniform random actions drawn on device (every env autoresets once), run once to
@@ -23,6 +24,8 @@ overlap, and take turns (a file lock) for the warm-up and timed rollouts; `--seq
 one count after another, each on GPUs 0..n-1; `--together` starts every count at once, each on
 GPUs 0..n-1 (so they share GPUs: JAX's memory fraction is split between them), and only the
 rollouts take turns, which fits 1 and 4 GPUs on a 4-GPU machine in one compile's time.
+`--processes` runs each count above one as one process per GPU (`python -m mwjax.distributed`):
+the same sharded env and rows, but no process launches Warp's work for more than one GPU.
 Results: a table, and a JSON file (device names, count, batch, commit, date, command) in
 `benchmarks/results/`, whose last stdout line is the summary row.
 Set XLA_PYTHON_CLIENT_MEM_FRACTION (~0.45, the default here) so that JAX leaves Warp room.
@@ -65,15 +68,16 @@ def gpu_count() -> int:
 def measure(args: argparse.Namespace) -> dict:
     import jax
     import jax.numpy as jnp
+    from jax.experimental import multihost_utils
 
     import mwjax
     from mwjax.env import staggered
     from mwjax.physics import DROPPED
 
     n = args.child
-    devices = jax.local_devices()[:n]
+    devices = jax.devices()[:n]  # with --processes, every process's GPU
     if len(devices) < n:
-        raise SystemExit(f"{n} devices asked for, {len(jax.local_devices())} visible")
+        raise SystemExit(f"{n} devices asked for, {len(jax.devices())} visible")
     per_task = args.envs_per_task if args.strong else args.envs_per_task * n
     steps = args.steps if args.stagger is None else args.stagger
     physics = mwjax.PhysicsConfig(graph_mode=args.graph_mode)
@@ -106,7 +110,10 @@ def measure(args: argparse.Namespace) -> dict:
     print(f"[{n} device(s)] {env.num_envs} envs: compiled in {compile_s:.0f}s", file=sys.stderr, flush=True)
 
     with open(args.lock) as lock:  # the rollouts of different counts never overlap
-        fcntl.flock(lock, fcntl.LOCK_EX)
+        if jax.process_index() == 0:
+            fcntl.flock(lock, fcntl.LOCK_EX)
+        if jax.process_count() > 1:  # the other processes of this count wait for process 0's turn
+            multihost_utils.sync_global_devices("rollouts")
         t0 = time.perf_counter()
         state, _, overflow = jax.block_until_ready(compiled(state, jax.random.key(1)))
         warmup_s = time.perf_counter() - t0
@@ -141,6 +148,7 @@ def measure(args: argparse.Namespace) -> dict:
         "success_steps_per_env": int(successes) / env.num_envs,
         "overflow_envs": overflow_envs,
         "valid": overflow_envs == 0,
+        "processes": jax.process_count(),
         "jax": jax.__version__,
     }
 
@@ -204,12 +212,22 @@ def main() -> None:
     parser.add_argument(
         "--together", action="store_true", help="every count at once on shared GPUs, rollouts in turn"
     )
+    parser.add_argument(
+        "--processes",
+        action="store_true",
+        help="run each count above 1 as one process per GPU (python -m mwjax.distributed)",
+    )
     parser.add_argument("--out", default=None, help="JSON path (default: benchmarks/results/...)")
     parser.add_argument("--child", type=int, default=None, help=argparse.SUPPRESS)
     parser.add_argument("--lock", default=None, help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.child is not None:
-        print(json.dumps(measure(args)), flush=True)
+        from mwjax import distributed
+
+        distributed.initialize()
+        row = measure(args)
+        if distributed.is_main():
+            print(json.dumps(row), flush=True)
         return
 
     counts = sorted(set(args.devices))
@@ -246,7 +264,11 @@ def main() -> None:
         for wave in waves:
             procs, first = {}, 0
             for n in wave:
-                command = [sys.executable, str(script), *forwarded, "--child", str(n), "--lock", lock.name]
+                command = [str(script), *forwarded, "--child", str(n), "--lock", lock.name]
+                if args.processes and n > 1:
+                    launcher = ["-m", "mwjax.distributed", "--processes", str(n)]
+                    command = launcher + (["--cpu"] if args.cpu else []) + command
+                command = [sys.executable, *command]
                 gpus = list(range(n)) if args.together else list(range(first, first + n))
                 procs[n] = subprocess.Popen(
                     command, env=child_env(args, gpus, n, sharing), stdout=subprocess.PIPE, text=True
@@ -278,6 +300,7 @@ def main() -> None:
         "stagger": args.stagger,
         "waves": waves,
         "together": args.together,
+        "processes": args.processes,
         "commit": commit(),
         "date": now.isoformat(timespec="seconds"),
         "host": platform.node(),

@@ -51,7 +51,7 @@ import optax
 from jax.sharding import PartitionSpec as P
 
 import mwjax
-from mwjax import progress, rendering
+from mwjax import distributed, progress, rendering
 from mwjax.evaluation import evaluator
 from mwjax.observation import OBS_SIZE
 from mwjax.sharding import AXIS
@@ -215,7 +215,9 @@ class Trainer:
 
     def __init__(self, config: Config) -> None:
         self.config = config
-        self.devices = jax.local_devices()[: config.devices] if config.devices > 1 else None
+        # Every device of the run: this process's, or with `python -m mwjax.distributed` every
+        # process's (one GPU each).
+        self.devices = jax.devices()[: config.devices] if config.devices > 1 else None
         if self.devices is not None and len(self.devices) < config.devices:
             raise ValueError(f"{config.devices} devices asked for, {len(self.devices)} present")
         self.env = mwjax.make(
@@ -770,7 +772,10 @@ def main() -> None:
         "--time-learner", action="store_true", help="after the evaluation, time the learner alone"
     )
     parser.add_argument(
-        "--devices", default="1", help="local devices to train on, data parallel: a count or 'all'"
+        "--devices",
+        default="1",
+        help="devices to train on, data parallel: a count or 'all' (with python -m mwjax.distributed, "
+        "every process's GPU)",
     )
     parser.add_argument(
         "--out", default=None, help="result stem (default: benchmarks/results/train/train-...)"
@@ -784,6 +789,7 @@ def main() -> None:
     )
     parser.add_argument("--video-size", type=int, default=128, help="video frames' width and height")
     args = parser.parse_args()
+    distributed.initialize()  # one process per GPU, when started by `python -m mwjax.distributed`
 
     runs = []
     for seed in args.seeds:
@@ -800,7 +806,7 @@ def main() -> None:
             staggered_starts=args.staggered_starts,
             reward_version=args.reward_version,
             seed=seed,
-            devices=jax.local_device_count() if args.devices == "all" else int(args.devices),
+            devices=jax.device_count() if args.devices == "all" else int(args.devices),
         )
         video = None
         if args.video is not None:
@@ -842,6 +848,8 @@ def main() -> None:
     stem = args.out or str(
         RESULTS / f"train-{args.set}-ppo-{summary['device']}-{summary['date'][:10]}".replace(" ", "_")
     )
+    if not distributed.is_main():  # every process of a distributed run has the same results
+        return
     Path(f"{stem}.json").write_text(json.dumps(summary, indent=2))
     plotted = save_plot(_plot, runs, Path(f"{stem}.png"))
     print(f"-> {stem}.json" + (f", {stem}.png" if plotted else ""))

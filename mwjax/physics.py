@@ -234,6 +234,7 @@ class Physics:
                     device_model=_without_console_warnings(
                         mjx.put_model(
                             warp_model(scene, mocap_bodies, config),
+                            device=local_device(),
                             impl="warp",
                             graph_mode=_graph_mode(config.graph_mode),
                         )
@@ -279,6 +280,7 @@ class Physics:
         make = functools.partial(
             mjx.make_data,
             group.model,
+            device=local_device(),
             impl="warp",
             naconmax=rows * self.config.contacts_per_env,
             naccdmax=rows * self.ccd_pairs(group.scene),
@@ -437,6 +439,14 @@ def _without_console_warnings(model: mjx.Model) -> mjx.Model:
     Warp still raises the flags; the setting only selects a kernel variant without `printf`."""
     opt = model.opt
     return model.replace(opt=opt.replace(_impl=opt._impl.replace(warn_overflow=0)))
+
+
+def local_device() -> jax.Device:
+    """Where this process's physics lives: its first local device, a GPU if it has one. MJX's
+    own default, the first device of the platform, belongs to another process when one process
+    drives each GPU (`mwjax.distributed`)."""
+    gpus = [d for d in jax.local_devices() if d.platform == "gpu"]
+    return gpus[0] if gpus else jax.local_devices(backend="cpu")[0]
 
 
 def _graph_mode(name: str | None) -> warp.JaxCallableGraphMode | None:

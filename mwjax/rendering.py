@@ -35,7 +35,7 @@ from mujoco import mjx
 from mwjax import warp_render_lighting
 from mwjax.env import Env, State
 from mwjax.models import SCENES_DIR
-from mwjax.physics import SceneGroup, _graph_mode
+from mwjax.physics import SceneGroup, _graph_mode, local_device
 
 Array = jax.Array
 warp_render_lighting.install()
@@ -145,7 +145,9 @@ class _Group:
         self.light_xdir = jnp.asarray(model.light_dir, jnp.float32)
         if np.any(model.light_bodyid != 0) or np.any(model.light_mode != mujoco.mjtCamLight.mjCAMLIGHT_FIXED):
             raise NotImplementedError(f"{group.scene}: only lights fixed to the world are supported")
-        self.device_model = mjx.put_model(model, impl="warp", graph_mode=_graph_mode(graph_mode))
+        device = local_device()
+        mode = _graph_mode(graph_mode)
+        self.device_model = mjx.put_model(model, device=device, impl="warp", graph_mode=mode)
         skybox = model.tex_type == mujoco.mjtTexture.mjTEXTURE_SKYBOX
         self.context = mjx.create_render_context(
             mjm=model,
@@ -168,7 +170,7 @@ class _Group:
         self.depth_adr = [int(a) for a in self.context.depth_adr.numpy()]
         self.width, self.height = width, height
         self._make_data = jax.jit(
-            lambda: jax.vmap(lambda _: mjx.make_data(model, impl="warp"))(jnp.arange(len(rows)))
+            lambda: jax.vmap(lambda _: mjx.make_data(model, device, impl="warp"))(jnp.arange(len(rows)))
         )
 
     def capture(self, state: State, start: int, g: int) -> tuple[Array, ...]:

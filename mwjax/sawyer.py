@@ -45,9 +45,15 @@ def check_action(action: Any, num_envs: int) -> Array:
     dtype = getattr(action, "dtype", None)
     if dtype is None or not jnp.issubdtype(dtype, jnp.floating):
         raise ValueError(f"actions must be floating point, got dtype {dtype}")
-    if not isinstance(action, jax.core.Tracer) and not bool(np.all(np.isfinite(np.asarray(action)))):
+    if not isinstance(action, jax.core.Tracer) and not _all_finite(action):
         raise ValueError("actions contain NaN or inf")
     return jnp.asarray(action, jnp.float32)
+
+
+def _all_finite(values: Any) -> bool:
+    if isinstance(values, jax.Array) and not values.is_fully_addressable:
+        return bool(jnp.isfinite(values).all())  # spread over processes: reduced on the devices
+    return bool(np.all(np.isfinite(np.asarray(values))))
 
 
 def frame_obs(spec: TaskSpec, frame: Frame) -> Array:

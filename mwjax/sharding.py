@@ -113,12 +113,13 @@ class ShardedEnv:
             self._group_inverse.append(np.argsort((k * envs_per_task + d * share + j).ravel()))
 
         # What differs between devices: each row's goal pool (ML sets give env e of a task its own
-        # share of the goal variants) and its place in the whole batch (for the reset keys).
+        # share of the goal variants) and its place in the whole batch (for the reset keys). Both
+        # follow from the device's index, computed inside the map from small host tables: a
+        # device array here would span every process's devices, which no jitted function may
+        # close over when one process drives each GPU (mwjax.distributed).
         n_variants = next(iter(local.goal_variants.values())).shape[0]
-        pools, sizes = goal_pools(local.goal_sampling, envs_per_task, n_variants, n_tasks)
-        per_row = (np.asarray(pools)[self.row_order], np.asarray(sizes)[self.row_order], self.row_order)
-        self._per_row_host = tuple(x.reshape(n, -1, *x.shape[1:]) for x in per_row)  # by device
-        self._per_row = jax.device_put(per_row, self.sharding)
+        pools, sizes = goal_pools(local.goal_sampling, envs_per_task, n_variants, 1)
+        self._env_pools, self._env_pool_sizes = np.asarray(pools), np.asarray(sizes)
         self._mapped: dict[Any, Callable[..., Any]] = {}
 
     # ----------------------------------------------------------------------------------------
@@ -133,7 +134,7 @@ class ShardedEnv:
             raise ValueError(f"variants must have shape ({self.num_envs},), got {variants.shape}")
         if not isinstance(variants, jax.core.Tracer):
             n = self.local.goals.count
-            if not np.all((np.asarray(variants) >= 0) & (np.asarray(variants) < n)):
+            if not bool(((variants >= 0) & (variants < n)).all()):
                 raise ValueError(f"variants must lie in [0, {n})")
         key = jax.random.key(0) if key is None else key
         run = self._map("reset_with_variants", lambda env, v, k: env.reset_with_variants(v, k), (1,))
@@ -201,34 +202,35 @@ class ShardedEnv:
         """Inside a `jax.shard_map` over `self.mesh` (axis `mwjax.sharding.AXIS`, the state split
         along it), the env of the calling device: an `Env` over its rows, as this env runs it.
         For loops that keep more than the env on each device (a training step, say)."""
-        here = jax.lax.axis_index(AXIS)
-        return self._device_env(*(jnp.asarray(x)[here] for x in self._per_row_host))
-
-    # ----------------------------------------------------------------------------------------
-
-    def _device_env(self, pools: Array, sizes: Array, rows: Array) -> Env:
-        """The local env with one device's goal pools and its rows' reset keys."""
+        share = self.envs_per_task // len(self.devices)
+        mine = jax.lax.axis_index(AXIS) * share + jnp.arange(share)  # its envs of each task
+        tasks = len(self.local.task_list)
+        rows = (np.arange(tasks)[:, None] * self.envs_per_task + mine).ravel()  # unsharded rows
         env = copy.copy(self.local)
+        pools = jnp.tile(jnp.asarray(self._env_pools)[mine], (tasks, 1))
+        sizes = jnp.tile(jnp.asarray(self._env_pool_sizes)[mine], tasks)
         env.goals = dataclasses.replace(env.goals, pools=pools, pool_sizes=sizes)
         batch = self.num_envs
         env._row_keys = lambda key: jax.random.split(key, batch)[rows]  # type: ignore[method-assign]
         return env
 
+    # ----------------------------------------------------------------------------------------
+
     def _map(self, name: Any, fn: Callable[..., Any], replicated: tuple[int, ...] = ()) -> Callable[..., Any]:
-        """`fn(local_env, *args)` on every device, on its rows of each argument (axis 0), except
+        """`fn(device_env, *args)` on every device, on its rows of each argument (axis 0), except
         the `replicated` arguments, which every device sees whole. Jitted once per `name`."""
-        if name in self._mapped:
-            return self._mapped[name]
+        if name not in self._mapped:
 
-        def body(per_row: tuple[Array, Array, Array], *args: Any) -> Any:
-            return fn(self._device_env(*per_row), *args)
+            def run(*args: Any) -> Any:
+                specs = tuple(P() if i in replicated else P(AXIS) for i in range(len(args)))
+                mapped = jax.shard_map(
+                    lambda *args: fn(self.device_env(), *args),
+                    mesh=self.mesh,
+                    in_specs=specs,
+                    out_specs=P(AXIS),
+                    check_vma=False,
+                )
+                return mapped(*args)
 
-        def run(*args: Any) -> Any:
-            specs = tuple(P() if i in replicated else P(AXIS) for i in range(len(args)))
-            mapped = jax.shard_map(
-                body, mesh=self.mesh, in_specs=(P(AXIS), *specs), out_specs=P(AXIS), check_vma=False
-            )
-            return mapped(self._per_row, *args)
-
-        self._mapped[name] = jax.jit(run)
+            self._mapped[name] = jax.jit(run)
         return self._mapped[name]

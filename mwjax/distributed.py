@@ -1,0 +1,160 @@
+"""One process per GPU: a sharded task set whose devices are driven by separate processes.
+
+    python -m mwjax.distributed --processes 4 examples/train_mt_ppo.py --devices all
+    python -m mwjax.distributed --processes 2 --cpu my_script.py    # 2 CPU processes (tests)
+
+starts `--processes` copies of the script, process i on GPU i alone, joined into one JAX
+process group (`jax.distributed`). The script calls `mwjax.distributed.initialize()` before
+anything else touches JAX; then `jax.devices()` lists every process's device and
+`mwjax.make(..., devices=jax.devices())` shards the batch over all of them, exactly as one
+process does over its local GPUs (same rows, same results). Each process steps its own share.
+
+Why: in one process, every device's Warp calls are launched from the host by that one Python
+process, under the GIL and Warp's lock, one device after another. That costs scaling (each of
+4 H200s stepped MT50 15% slower than one alone), and a data-parallel update, whose NCCL
+all-reduces wait for every device's Warp calls, hangs on 4 GPUs
+(`benchmarks/results/train/ppo-chunk-probe-MT10-4-gpus-...`). One process per GPU has none of
+that: each process launches its own GPU's work.
+
+In such a run, arrays that span the devices are global: read a replicated one (a metric after
+`pmean`) as usual, gather a sharded one with `jax.experimental.multihost_utils.process_allgather`.
+`is_main()` says which process should print and write files. Without the launcher,
+`initialize()` does nothing and a script runs as one process.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import signal
+import socket
+import subprocess
+import sys
+import time
+from collections.abc import Sequence
+
+PROCESS_ID = "MWJAX_PROCESS_ID"
+NUM_PROCESSES = "MWJAX_NUM_PROCESSES"
+COORDINATOR = "MWJAX_COORDINATOR"
+
+
+def initialize() -> bool:
+    """Join the process group `python -m mwjax.distributed` set up for this process (from its
+    environment variables); True if it did, False (nothing done) in a process started otherwise.
+    Call it before anything else uses JAX."""
+    if PROCESS_ID not in os.environ:
+        return False
+    import jax
+
+    if os.environ.get("JAX_PLATFORMS") == "cpu":
+        jax.config.update("jax_cpu_collectives_implementation", "gloo")
+    jax.distributed.initialize(
+        coordinator_address=os.environ[COORDINATOR],
+        num_processes=int(os.environ[NUM_PROCESSES]),
+        process_id=int(os.environ[PROCESS_ID]),
+    )
+    return True
+
+
+def is_main() -> bool:
+    """True in the process that should print and write results (process 0, or the only one)."""
+    return int(os.environ.get(PROCESS_ID, "0")) == 0
+
+
+def visible_gpus() -> list[str]:
+    """The GPUs this process may use (CUDA_VISIBLE_DEVICES, else all that nvidia-smi lists),
+    found without starting JAX."""
+    visible = os.environ.get("CUDA_VISIBLE_DEVICES")
+    if visible is not None:
+        return [v.strip() for v in visible.split(",") if v.strip()]
+    try:
+        out = subprocess.run(["nvidia-smi", "-L"], capture_output=True, text=True, check=True).stdout
+    except (OSError, subprocess.CalledProcessError):
+        return []
+    return [str(i) for i, line in enumerate(out.splitlines()) if line.startswith("GPU ")]
+
+
+def process_env(process: int, processes: int, coordinator: str, gpus: Sequence[str] | None) -> dict:
+    """Process `process`'s environment: its GPU alone (`gpus[process]`), or with `gpus=None` one
+    host CPU device."""
+    env = dict(os.environ)
+    env.update({PROCESS_ID: str(process), NUM_PROCESSES: str(processes), COORDINATOR: coordinator})
+    if gpus is None:
+        env["JAX_PLATFORMS"] = "cpu"
+        flags = [f for f in env.get("XLA_FLAGS", "").split() if "host_platform_device_count" not in f]
+        env["XLA_FLAGS"] = " ".join(flags)
+    else:
+        env["CUDA_VISIBLE_DEVICES"] = gpus[process]
+    return env
+
+
+def launch(command: Sequence[str], processes: int, cpu: bool = False) -> int:
+    """Run `command` (a Python script and its arguments) as `processes` processes, process i on
+    GPU i (`cpu`: on one host device each). Process 0's output is the run's; the others keep
+    only their errors. If one process fails, the others are stopped (they would wait forever
+    in a collective). Returns the first non-zero exit code, else 0."""
+    if processes < 1:
+        raise ValueError(f"processes must be at least 1, got {processes}")
+    gpus = None if cpu else visible_gpus()
+    if gpus is not None and len(gpus) < processes:
+        raise ValueError(
+            f"{processes} processes need {processes} GPUs, {len(gpus)} visible"
+            + ("" if gpus else " (--cpu runs on host devices)")
+        )
+    with socket.socket() as probe:  # a free port for the coordinator
+        probe.bind(("localhost", 0))
+        coordinator = f"localhost:{probe.getsockname()[1]}"
+    procs = [
+        subprocess.Popen(
+            [sys.executable, *command],
+            env=process_env(i, processes, coordinator, gpus),
+            stdout=None if i == 0 else subprocess.DEVNULL,
+        )
+        for i in range(processes)
+    ]
+    code = 0
+    try:
+        while any(p.poll() is None for p in procs):
+            failed = next((p for p in procs if p.poll()), None)
+            if failed is not None:
+                code = failed.returncode
+                print(
+                    f"mwjax.distributed: process {procs.index(failed)} exited with {code}; "
+                    "stopping the others",
+                    file=sys.stderr,
+                    flush=True,
+                )
+                break
+            time.sleep(0.2)
+    finally:
+        for p in procs:
+            if p.poll() is None:
+                p.send_signal(signal.SIGTERM)
+        for p in procs:
+            try:
+                p.wait(timeout=30)
+            except subprocess.TimeoutExpired:
+                p.kill()
+                p.wait()
+    return code or next((p.returncode for p in procs if p.returncode), 0)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(
+        prog="python -m mwjax.distributed",
+        description="Run a script as one process per GPU, joined into one JAX process group.",
+    )
+    parser.add_argument("--processes", type=int, required=True, help="processes (GPUs) to use")
+    parser.add_argument("--cpu", action="store_true", help="one host CPU device per process")
+    parser.add_argument("script", help="the Python script to run")
+    parser.add_argument("args", nargs=argparse.REMAINDER, help="its arguments")
+    args = parser.parse_args(argv)
+    try:
+        return launch([args.script, *args.args], args.processes, cpu=args.cpu)
+    except ValueError as error:
+        parser.error(str(error))
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -34,6 +34,7 @@ Set XLA_PYTHON_CLIENT_MEM_FRACTION (~0.45, the default here) so that JAX leaves 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import datetime
 import fcntl
 import json
@@ -44,6 +45,7 @@ import subprocess
 import sys
 import tempfile
 import time
+from collections.abc import Iterator
 from pathlib import Path
 
 from common import RESULTS, commit
@@ -68,7 +70,6 @@ def gpu_count() -> int:
 def measure(args: argparse.Namespace) -> dict:
     import jax
     import jax.numpy as jnp
-    from jax.experimental import multihost_utils
 
     import mwjax
     from mwjax.env import staggered
@@ -109,22 +110,23 @@ def measure(args: argparse.Namespace) -> dict:
     compile_s = time.perf_counter() - t0
     print(f"[{n} device(s)] {env.num_envs} envs: compiled in {compile_s:.0f}s", file=sys.stderr, flush=True)
 
-    with open(args.lock) as lock:  # the rollouts of different counts never overlap
-        if jax.process_index() == 0:
-            fcntl.flock(lock, fcntl.LOCK_EX)
-        if jax.process_count() > 1:  # the other processes of this count wait for process 0's turn
-            multihost_utils.sync_global_devices("rollouts")
+    with rollout_turn(args.lock, n):  # the rollouts of different counts never overlap
         t0 = time.perf_counter()
         state, _, overflow = jax.block_until_ready(compiled(state, jax.random.key(1)))
         warmup_s = time.perf_counter() - t0
-        print(f"[{n} device(s)] warm-up rollout: {warmup_s:.0f}s", file=sys.stderr, flush=True)
+        print(f"[{n} device(s)] warm-up rollout: {warmup_s:.2f}s", file=sys.stderr, flush=True)
         overflow_envs = int(overflow)
         times = []
         for i in range(args.repeats):
             t0 = time.perf_counter()
             state, successes, overflow = jax.block_until_ready(compiled(state, jax.random.key(2 + i)))
             times.append(time.perf_counter() - t0)
-            print(f"[{n} device(s)] timed rollout: {times[-1]:.0f}s", file=sys.stderr, flush=True)
+            print(
+                f"[{n} device(s)] timed rollout: {times[-1]:.2f}s, "
+                f"{env.num_envs * steps / times[-1]:,.0f} env steps/s",
+                file=sys.stderr,
+                flush=True,
+            )
             overflow_envs = max(overflow_envs, int(overflow))
     rate = env.num_envs * steps / min(times)
     return {
@@ -151,6 +153,27 @@ def measure(args: argparse.Namespace) -> dict:
         "processes": jax.process_count(),
         "jax": jax.__version__,
     }
+
+
+@contextlib.contextmanager
+def rollout_turn(lock_path: str, n: int) -> Iterator[None]:
+    """This count's turn at the GPUs: its (first) process holds the file lock; with one process
+    per GPU, the others wait on the host until it does. (A device barrier would keep their GPUs
+    busy spinning, beside another count's rollout on a shared GPU.)"""
+    import jax
+
+    go = Path(f"{lock_path}.{n}")
+    with open(lock_path) as lock:
+        if jax.process_index() == 0:
+            fcntl.flock(lock, fcntl.LOCK_EX)
+            go.touch()
+        while not go.exists():
+            time.sleep(0.05)
+        try:
+            yield
+        finally:
+            if jax.process_index() == 0:  # the others have seen `go`: the rollouts' sums join them
+                go.unlink()
 
 
 # ------------------------------------------------------------------------------------------------

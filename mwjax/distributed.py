@@ -85,6 +85,8 @@ def process_env(process: int, processes: int, coordinator: str, gpus: Sequence[s
         env["XLA_FLAGS"] = " ".join(flags)
     else:
         env["CUDA_VISIBLE_DEVICES"] = gpus[process]
+    if process:  # process 0 shows the progress; the others would repeat it
+        env["MWJAX_PROGRESS"] = "0"
     return env
 
 

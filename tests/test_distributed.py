@@ -75,6 +75,7 @@ def test_initialize_does_nothing_outside_the_launcher(monkeypatch):
 def test_each_process_gets_its_own_gpu():
     env = distributed.process_env(1, 2, "localhost:1", ["4", "6"])
     assert env["CUDA_VISIBLE_DEVICES"] == "6"
+    assert env["MWJAX_PROGRESS"] == "0"  # process 0's progress lines are the run's
     assert (env[distributed.PROCESS_ID], env[distributed.NUM_PROCESSES]) == ("1", "2")
     cpu = distributed.process_env(0, 2, "localhost:1", None)
     assert cpu["JAX_PLATFORMS"] == "cpu" and "device_count" not in cpu["XLA_FLAGS"]

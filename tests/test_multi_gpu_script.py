@@ -1,8 +1,11 @@
-"""`benchmarks/multi_gpu.py`'s planning: which device counts share a wave, and JAX's memory share."""
+"""`benchmarks/multi_gpu.py`'s planning (which device counts share a wave, JAX's memory share) and a
+CPU run of its one-process-per-device mode."""
 
 from __future__ import annotations
 
 import importlib.util
+import json
+import subprocess
 import sys
 from pathlib import Path
 
@@ -37,3 +40,16 @@ def test_processes_sharing_a_gpu_split_the_memory_share_they_were_given(multi_gp
     # processes each taking 0.45 of one GPU ran out of memory.
     monkeypatch.setenv("XLA_PYTHON_CLIENT_MEM_FRACTION", "0.6")
     assert float(multi_gpu.mem_fraction(3)) == pytest.approx(0.2)
+
+
+def test_one_process_per_device_reports_one_row_per_count(tmp_path):
+    out = tmp_path / "multi-gpu.json"
+    command = [sys.executable, str(BENCHMARKS / "multi_gpu.py"), "--set", "MT1:reach-v3", "--cpu"]
+    command += ["--envs-per-task", "2", "--steps", "3", "--devices", "1", "2", "--processes"]
+    command += ["--out", str(out)]
+    result = subprocess.run(command, capture_output=True, text=True, timeout=600)
+    assert result.returncode == 0, result.stderr[-4000:]
+    summary = json.loads(out.read_text())
+    assert summary["processes"] and summary["valid"] and summary["device_counts"] == [1, 2]
+    assert [r["processes"] for r in summary["results"]] == [1, 2]  # the 2-device count ran in 2
+    assert [r["num_envs"] for r in summary["results"]] == [2, 4]

@@ -2,6 +2,8 @@
 each run, timed apart, on 1 or several local devices (`train_mt_ppo.py --devices`).
 
     python tools/ppo_chunk_probe.py --devices 4 --envs-per-task 13104 --runs 2   # 4 GPUs
+    python -m mwjax.distributed --processes 4 tools/ppo_chunk_probe.py --devices 4 \
+        --envs-per-task 13104 --runs 2                                           # one process each
     XLA_FLAGS=--xla_force_host_platform_device_count=4 JAX_PLATFORMS=cpu \\
         python tools/ppo_chunk_probe.py --set MT10 --devices 4 --envs-per-task 16 --unroll 4 \\
         --minibatches 2 --epochs 1 --updates 2                                   # CPU
@@ -22,6 +24,7 @@ import jax
 
 sys.path.insert(0, str(Path(__file__).parents[1]))
 from examples import train_mt_ppo as ppo  # noqa: E402
+from mwjax import distributed  # noqa: E402
 
 
 def main() -> None:
@@ -35,10 +38,12 @@ def main() -> None:
     parser.add_argument("--updates", type=int, default=10, help="updates per chunk (--log-every)")
     parser.add_argument("--runs", type=int, default=1, help="chunks run after the compile")
     args = parser.parse_args()
+    distributed.initialize()  # under `python -m mwjax.distributed`: one process per GPU
 
     def say(what: str, since: float) -> float:
         now = time.perf_counter()
-        print(f"{what}: {now - since:.1f} s", flush=True)
+        if distributed.is_main():
+            print(f"{what}: {now - since:.1f} s", flush=True)
         return now
 
     print(f"{args.set} on {args.devices} of {jax.devices()}", flush=True)

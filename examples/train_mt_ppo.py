@@ -19,7 +19,8 @@ and the learning curve is saved as JSON and PNG in `benchmarks/results/train/`.
 equal share of every task on each) and runs each update data parallel under `jax.shard_map`:
 every device rolls out and learns on its own envs, with the gradients, the normalizers' and the
 advantages' statistics and the metrics averaged or summed over the devices (`pmean`/`psum`).
-`--envs-per-task` is the total over the devices.
+`--envs-per-task` is the total over the devices. On GPUs the script reruns itself as one process
+per GPU (`python -m mwjax.distributed`; in one process the update hangs on 4 GPUs).
 
 `--video DIR` then writes one episode of the trained policy's mean action on each task,
 `DIR/<task>.mp4` from the reference's `corner` camera (rendered by `mwjax.rendering`).
@@ -739,6 +740,23 @@ def _commit() -> str:
         return "unknown"
 
 
+def one_process_per_gpu(devices: str) -> int | None:
+    """On GPUs, `--devices N` (N > 1, or `all`) reruns this script as one process per GPU
+    (`python -m mwjax.distributed`) and returns the run's exit code: in one process, an update's
+    all-reduces between Warp's calls hang on 4 GPUs (docs/multi-gpu.md). None: train here (one
+    device, host devices, or already one of the processes)."""
+    if devices == "1" or distributed.launched() or os.environ.get("JAX_PLATFORMS") == "cpu":
+        return None
+    gpus = distributed.visible_gpus()
+    n = len(gpus) if devices == "all" else int(devices)
+    if len(gpus) < 2 or n < 2:
+        return None
+    print(
+        f"--devices {devices}: one process per GPU (python -m mwjax.distributed --processes {n})", flush=True
+    )
+    return distributed.launch([__file__, *sys.argv[1:]], n)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     defaults = Config()
@@ -789,6 +807,12 @@ def main() -> None:
     )
     parser.add_argument("--video-size", type=int, default=128, help="video frames' width and height")
     args = parser.parse_args()
+    try:
+        code = one_process_per_gpu(args.devices)
+    except ValueError as error:
+        parser.error(str(error))
+    if code is not None:
+        sys.exit(code)
     distributed.initialize()  # one process per GPU, when started by `python -m mwjax.distributed`
 
     runs = []

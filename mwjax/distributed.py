@@ -42,7 +42,7 @@ def initialize() -> bool:
     """Join the process group `python -m mwjax.distributed` set up for this process (from its
     environment variables); True if it did, False (nothing done) in a process started otherwise.
     Call it before anything else uses JAX."""
-    if PROCESS_ID not in os.environ:
+    if not launched():
         return False
     import jax
 
@@ -54,6 +54,11 @@ def initialize() -> bool:
         process_id=int(os.environ[PROCESS_ID]),
     )
     return True
+
+
+def launched() -> bool:
+    """True in a process that `python -m mwjax.distributed` started."""
+    return PROCESS_ID in os.environ
 
 
 def is_main() -> bool:

@@ -2,12 +2,14 @@
 a GPU benchmark. Two tasks of one scene, a tiny batch and 10-step episodes keep it short."""
 
 import dataclasses
+import sys
 
 import jax
 import numpy as np
 import pytest
 
 from examples import train_mt_ppo as ppo
+from mwjax import distributed
 
 CONFIG = ppo.Config(
     task_set=("reach-v3", "push-v3"),
@@ -113,3 +115,21 @@ def test_policy_frames_show_one_episode_of_each_task(trainer):
     assert np.abs(frames[-1].astype(int) - frames[0]).max() > 50  # the arm moved
     still = trainer.policy_frames((carry.params, carry.norm), jax.random.key(7), size=32)
     assert not np.array_equal(frames[-1], still[-1])  # the policy's actions drove it
+
+
+def test_several_gpus_train_in_one_process_each(monkeypatch):
+    launched = []
+    monkeypatch.delenv("JAX_PLATFORMS", raising=False)
+    monkeypatch.delenv(distributed.PROCESS_ID, raising=False)
+    monkeypatch.setattr(distributed, "visible_gpus", lambda: ["0", "1", "2", "3"])
+    monkeypatch.setattr(distributed, "launch", lambda command, n: launched.append((command, n)) or 0)
+    monkeypatch.setattr(sys, "argv", ["train_mt_ppo.py", "--devices", "all"])
+    assert ppo.one_process_per_gpu("all") == 0
+    assert launched == [([ppo.__file__, "--devices", "all"], 4)]
+    assert ppo.one_process_per_gpu("2") == 0 and launched[-1][1] == 2
+    assert ppo.one_process_per_gpu("1") is None  # one GPU: trains here
+    monkeypatch.setenv(distributed.PROCESS_ID, "0")
+    assert ppo.one_process_per_gpu("all") is None  # already one of the processes
+    monkeypatch.delenv(distributed.PROCESS_ID)
+    monkeypatch.setattr(distributed, "visible_gpus", lambda: [])
+    assert ppo.one_process_per_gpu("all") is None  # host devices (no GPU): one process

@@ -50,18 +50,7 @@ from pathlib import Path
 
 from common import RESULTS, commit
 
-
-def gpu_count() -> int:
-    """Visible NVIDIA GPUs, without starting JAX in this (parent) process."""
-    visible = os.environ.get("CUDA_VISIBLE_DEVICES")
-    if visible is not None:
-        return len([v for v in visible.split(",") if v.strip()])
-    try:
-        out = subprocess.run(["nvidia-smi", "-L"], capture_output=True, text=True, check=True).stdout
-    except (OSError, subprocess.CalledProcessError):
-        return 0
-    return sum(1 for line in out.splitlines() if line.startswith("GPU "))
-
+from mwjax import distributed
 
 # ------------------------------------------------------------------------------------------------
 # One device count (a child process)
@@ -245,8 +234,6 @@ def main() -> None:
     parser.add_argument("--lock", default=None, help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.child is not None:
-        from mwjax import distributed
-
         distributed.initialize()
         row = measure(args)
         if distributed.is_main():
@@ -254,7 +241,7 @@ def main() -> None:
         return
 
     counts = sorted(set(args.devices))
-    available = max(counts) if args.cpu else gpu_count()
+    available = max(counts) if args.cpu else len(distributed.visible_gpus())
     if not args.cpu and available == 0:
         sys.exit("no NVIDIA GPU visible (--cpu runs on host devices)")
     skipped = [n for n in counts if n > available]

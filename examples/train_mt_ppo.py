@@ -518,6 +518,29 @@ class Trainer:
             metrics.episodes.sum(0), metrics.successes.sum(0), metrics.loss.mean(), metrics.approx_kl.mean()
         )
 
+    def rollout_seconds(self, carry: Carry, updates: int) -> float:
+        """Wall time of the rollouts of `updates` updates alone (the policy acting, the env
+        stepping; no learning; compile excluded), on one device or sharded: the rest of an
+        update's time is the learner's and its collectives'."""
+
+        def rollouts(c: Carry) -> tuple[Carry, Array]:
+            def one(c: Carry, _: None) -> tuple[Carry, Array]:
+                c, _, episodes, _ = self._rollout(c)
+                return c, episodes.sum()
+
+            return jax.lax.scan(one, c, None, length=updates)
+
+        if self.axis is not None:
+            specs = self._carry_specs()
+            rollouts = jax.shard_map(
+                rollouts, mesh=self.env.mesh, in_specs=(specs,), out_specs=(specs, P()), check_vma=False
+            )
+        compiled = jax.jit(rollouts).lower(carry).compile()
+        carry = jax.block_until_ready(compiled(carry))[0]
+        t0 = time.perf_counter()
+        jax.block_until_ready(compiled(carry))
+        return time.perf_counter() - t0
+
     def learner_seconds(self, carry: Carry, updates: int) -> float:
         """Wall time of the learner's half of `updates` updates alone (compile excluded), on a
         stand-in rollout of the real shapes: what is left of an update is the simulator and the

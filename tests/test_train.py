@@ -74,9 +74,10 @@ def test_a_tasks_own_layers_answer_for_that_task_alone(architecture, layer):
     assert np.all(after[second] != before[second])
 
 
-def test_the_learner_can_be_timed_alone(trainer):
+def test_the_learner_and_the_rollouts_can_be_timed_alone(trainer):
     carry = trainer.init(jax.random.key(4))
     assert trainer.learner_seconds(carry, 1) > 0
+    assert trainer.rollout_seconds(carry, 1) > 0
 
 
 def test_staggered_starts_cut_each_first_episode_once_then_run_full_length():

@@ -2,15 +2,16 @@
 each run, timed apart, on 1 or several local devices (`train_mt_ppo.py --devices`).
 
     python tools/ppo_chunk_probe.py --devices 4 --envs-per-task 13104 --runs 2   # 4 GPUs
-    python -m mwjax.distributed --processes 4 tools/ppo_chunk_probe.py --devices 4 \
-        --envs-per-task 13104 --runs 2                                           # one process each
+    python -m mwjax.distributed --processes 4 tools/ppo_chunk_probe.py --devices 4 \\
+        --envs-per-task 13104 --runs 2 --split                                   # one process each
     XLA_FLAGS=--xla_force_host_platform_device_count=4 JAX_PLATFORMS=cpu \\
         python tools/ppo_chunk_probe.py --set MT10 --devices 4 --envs-per-task 16 --unroll 4 \\
         --minibatches 2 --epochs 1 --updates 2                                   # CPU
 
 The example itself times the first chunk as one block (compile and run together); a sharded run
 that prints nothing for minutes is either compiling or stuck, and this tells which: each phase
-prints its line as it ends, so a phase that never ends is the one that hangs.
+prints its line as it ends, so a phase that never ends is the one that hangs. `--split` then
+times the same updates' rollouts alone (on one device the learner too): where an update's time goes.
 """
 
 from __future__ import annotations
@@ -29,7 +30,7 @@ from mwjax import distributed  # noqa: E402
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--set", default="MT10")
+    parser.add_argument("--set", default="MT10", help="a set name, or tasks separated by commas")
     parser.add_argument("--devices", type=int, default=1)
     parser.add_argument("--envs-per-task", type=int, default=ppo.Config.envs_per_task)
     parser.add_argument("--unroll", type=int, default=ppo.Config.unroll)
@@ -37,6 +38,11 @@ def main() -> None:
     parser.add_argument("--epochs", type=int, default=ppo.Config.epochs)
     parser.add_argument("--updates", type=int, default=10, help="updates per chunk (--log-every)")
     parser.add_argument("--runs", type=int, default=1, help="chunks run after the compile")
+    parser.add_argument(
+        "--split",
+        action="store_true",
+        help="then time the chunk's rollouts alone (and the learner, on one device)",
+    )
     args = parser.parse_args()
     distributed.initialize()  # under `python -m mwjax.distributed`: one process per GPU
 
@@ -48,7 +54,7 @@ def main() -> None:
 
     print(f"{args.set} on {args.devices} of {jax.devices()}", flush=True)
     config = ppo.Config(
-        task_set=args.set,
+        task_set=tuple(args.set.split(",")) if "," in args.set else args.set,
         envs_per_task=args.envs_per_task,
         unroll=args.unroll,
         minibatches=args.minibatches,
@@ -68,6 +74,12 @@ def main() -> None:
         carry, metrics = compiled(carry)
         jax.block_until_ready(metrics)
         t = say(f"run {i + 1} ({args.updates * trainer.steps_per_update:,} env steps)", t)
+    if args.split:  # each timed without its compile
+        rollouts = trainer.rollout_seconds(carry, args.updates)
+        say(f"the rollouts of {args.updates} updates alone took {rollouts:.1f} s; compile and both runs", t)
+        if trainer.axis is None:
+            learner = trainer.learner_seconds(carry, args.updates)
+            print(f"the learner of {args.updates} updates alone: {learner:.1f} s", flush=True)
 
 
 if __name__ == "__main__":

@@ -122,3 +122,13 @@ def _rollouts(out: Path) -> None:
 
 if __name__ == "__main__":
     _rollouts(Path(sys.argv[1]))
+
+
+def test_the_gymnasium_adapter_takes_this_processs_devices_only():
+    from types import SimpleNamespace
+
+    from mwjax.wrappers.gymnasium import make_vector
+
+    other_process = SimpleNamespace(process_index=1, platform="gpu")
+    with pytest.raises(ValueError, match="devices=jax.local_devices()"):
+        make_vector("MT1", task="reach-v3", envs_per_task=2, devices=[other_process])

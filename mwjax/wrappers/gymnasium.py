@@ -466,6 +466,12 @@ def make_vector(
     """
     if vector_strategy not in (None, "sync", "async"):
         raise ValueError(f"vector_strategy must be 'sync' or 'async', got {vector_strategy!r}")
+    if devices is not None and any(d.process_index != jax.process_index() for d in devices):
+        raise ValueError(
+            "the Gymnasium adapter returns host arrays of its whole batch, so its devices must be "
+            "this process's: in a run of several processes (mwjax.distributed) give each process "
+            "its own envs with devices=jax.local_devices() (or none)"
+        )
     if env_id is not None:
         raise ValueError("env_id is for one env (gym.make of mwjax/MT1); a set gives each env its task's id")
     render = {k: reference_options.pop(k) for k in _RENDER_OPTIONS if k in reference_options}

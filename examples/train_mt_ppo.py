@@ -4,6 +4,7 @@
     python examples/train_mt_ppo.py --set reach-v3,push-v3 --envs-per-task 2 --unroll 4 \
         --minibatches 2 --updates 2 --eval-episodes 1  # a CPU smoke run
     python examples/train_mt_ppo.py --devices all    # data parallel over every local GPU
+    python examples/train_mt_ppo.py --seeds 0 1 2 3 --parallel 4  # four seeds, one GPU each
     python examples/train_mt_ppo.py --video videos/  # and a video of the trained policy per task
 
 One `lax.scan` runs `--log-every` PPO updates (each: `--unroll` steps of every env, GAE, several
@@ -40,6 +41,7 @@ import os
 import shlex
 import subprocess
 import sys
+import tempfile
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -805,6 +807,12 @@ def main() -> None:
         help="cut each env's first episode at a random multiple of --unroll steps (runs 1-6: off)",
     )
     parser.add_argument("--seeds", type=int, nargs="+", default=[0])
+    parser.add_argument(
+        "--parallel",
+        type=int,
+        default=1,
+        help="seeds trained at once, each in its own process on a GPU of its own (1: one after another)",
+    )
     parser.add_argument("--minutes", type=float, default=8.4, help="wall clock per seed, compile included")
     parser.add_argument("--updates", type=int, default=None, help="stop after this many updates instead")
     parser.add_argument("--log-every", type=int, default=10, help="updates per jitted chunk")
@@ -836,6 +844,13 @@ def main() -> None:
         parser.error(str(error))
     if code is not None:
         sys.exit(code)
+    if args.parallel > 1 and len(args.seeds) > 1:
+        if args.devices != "1":
+            parser.error("--parallel trains each seed on one device: leave --devices at 1")
+        try:
+            sys.exit(seeds_in_parallel(args))
+        except ValueError as error:
+            parser.error(str(error))
     distributed.initialize()  # one process per GPU, when started by `python -m mwjax.distributed`
 
     runs = []
@@ -875,9 +890,46 @@ def main() -> None:
             flush=True,
         )
         runs.append(run)
-    device = jax.devices()[0]
+    if distributed.is_main():  # every process of a distributed run has the same results
+        device = jax.devices()[0]
+        write_results(runs, args, getattr(device, "device_kind", str(device)))
+
+
+def seeds_in_parallel(args: argparse.Namespace) -> int:
+    """`--parallel N`: each seed trained by this script in a process of its own, N at a time,
+    each on a GPU of its own (`mwjax.distributed.run_independent`); then one summary of all of
+    them, as a sequential run writes it. Returns 0, or 1 if a seed's run failed."""
+    cpu = os.environ.get("JAX_PLATFORMS") == "cpu" or not distributed.visible_gpus()
+    with tempfile.TemporaryDirectory(prefix="mwjax-seeds-") as tmp:
+        commands, logs = [], []
+        for seed in args.seeds:
+            # The last occurrence of an option wins: each child trains its one seed.
+            own = ["--seeds", str(seed), "--parallel", "1", "--out", f"{tmp}/seed{seed}"]
+            if args.video is not None:
+                own += ["--video", str(args.video / f"seed{seed}")]
+            commands.append([__file__, *sys.argv[1:], *own])
+            logs.append(Path(tmp) / f"seed{seed}.log")
+        codes = distributed.run_independent(commands, logs, args.parallel, cpu=cpu)
+        done = [seed for seed, code in zip(args.seeds, codes, strict=True) if code == 0]
+        children = [json.loads(Path(f"{tmp}/seed{seed}.json").read_text()) for seed in done]
+        if children:
+            runs = [child["runs"][0] for child in children]
+            for seed, run in zip(done, runs, strict=True):
+                print(f"seed {seed}: evaluation success {run['eval_success']:.3f}", flush=True)
+            stem = write_results(runs, args, children[0]["device"])
+            for seed in args.seeds:  # each seed's whole output beside the summary
+                Path(f"{tmp}/seed{seed}.log").replace(f"{stem}-seed{seed}.log")
+    failed = [seed for seed in args.seeds if seed not in done]
+    if failed:
+        print(f"seeds {failed} failed: see {'their logs' if children else 'the logs above'}", flush=True)
+    return 1 if failed else 0
+
+
+def write_results(runs: list[dict], args: argparse.Namespace, device: str) -> str:
+    """The runs' JSON (with the IQM and its CI over seeds) and learning-curve PNG; returns their
+    path without the suffix."""
     summary = {
-        "device": getattr(device, "device_kind", str(device)),
+        "device": device,
         "commit": _commit(),
         "date": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
         "command": shlex.join(["python", *sys.argv]),
@@ -895,11 +947,10 @@ def main() -> None:
     stem = args.out or str(
         RESULTS / f"train-{args.set}-ppo-{summary['device']}-{summary['date'][:10]}".replace(" ", "_")
     )
-    if not distributed.is_main():  # every process of a distributed run has the same results
-        return
     Path(f"{stem}.json").write_text(json.dumps(summary, indent=2))
     plotted = save_plot(_plot, runs, Path(f"{stem}.png"))
     print(f"-> {stem}.json" + (f", {stem}.png" if plotted else ""))
+    return stem
 
 
 if __name__ == "__main__":

@@ -20,6 +20,9 @@ In such a run, arrays that span the devices are global: read a replicated one (a
 `pmean`) as usual, gather a sharded one with `jax.experimental.multihost_utils.process_allgather`.
 `is_main()` says which process should print and write files. Without the launcher,
 `initialize()` does nothing and a script runs as one process.
+
+`run_independent(commands, logs, parallel)` is the other use of several GPUs: separate runs
+(seeds of one experiment, say), each a process of its own on a GPU of its own, not a group.
 """
 
 from __future__ import annotations
@@ -32,6 +35,7 @@ import subprocess
 import sys
 import time
 from collections.abc import Sequence
+from pathlib import Path
 
 PROCESS_ID = "MWJAX_PROCESS_ID"
 NUM_PROCESSES = "MWJAX_NUM_PROCESSES"
@@ -144,6 +148,53 @@ def launch(command: Sequence[str], processes: int, cpu: bool = False) -> int:
                 p.kill()
                 p.wait()
     return code or next((p.returncode for p in procs if p.returncode), 0)
+
+
+def run_independent(
+    commands: Sequence[Sequence[str]], logs: Sequence[Path], parallel: int, cpu: bool = False
+) -> list[int]:
+    """Run each command (a Python script and its arguments) as a process of its own, not a
+    process group: at most `parallel` at a time, each on a GPU no other one uses (`cpu`: on the
+    host), its output to its log. Every 30 s it prints each running process's last line. Returns
+    the exit codes, in the commands' order. For independent runs, e.g. seeds of one experiment."""
+    gpus = None if cpu else visible_gpus()
+    if gpus is not None and len(gpus) < parallel:
+        raise ValueError(f"{parallel} processes at a time need {parallel} GPUs, {len(gpus)} visible")
+    pending = list(range(len(commands)))
+    running: dict[int, tuple[int, subprocess.Popen]] = {}  # slot -> (command, process)
+    codes = [0] * len(commands)
+    shown = time.perf_counter()
+    while pending or running:
+        for slot in range(parallel):
+            if slot not in running and pending:
+                i = pending.pop(0)
+                env = dict(os.environ)
+                if gpus is not None:
+                    env["CUDA_VISIBLE_DEVICES"] = gpus[slot]
+                with open(logs[i], "w") as log:
+                    process = subprocess.Popen(
+                        [sys.executable, *commands[i]], env=env, stdout=log, stderr=subprocess.STDOUT
+                    )
+                running[slot] = (i, process)
+                where = "the host" if gpus is None else f"GPU {gpus[slot]}"
+                print(f"run {i + 1}/{len(commands)} started on {where} (log: {logs[i]})", flush=True)
+        for slot, (i, process) in list(running.items()):
+            if process.poll() is not None:
+                codes[i] = process.returncode
+                del running[slot]
+                state = "done" if not codes[i] else f"FAILED (exit {codes[i]})"
+                print(f"run {i + 1}/{len(commands)} {state}: {_last_line(logs[i])}", flush=True)
+        if running and time.perf_counter() - shown > 30:
+            shown = time.perf_counter()
+            for i, _ in running.values():
+                print(f"  run {i + 1}: {_last_line(logs[i])}", flush=True)
+        time.sleep(0.5)
+    return codes
+
+
+def _last_line(path: Path) -> str:
+    lines = [line for line in Path(path).read_text(errors="replace").splitlines() if line.strip()]
+    return lines[-1].strip()[:160] if lines else "(no output yet)"
 
 
 def main(argv: Sequence[str] | None = None) -> int:

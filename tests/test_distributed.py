@@ -132,3 +132,18 @@ def test_the_gymnasium_adapter_takes_this_processs_devices_only():
     other_process = SimpleNamespace(process_index=1, platform="gpu")
     with pytest.raises(ValueError, match="devices=jax.local_devices()"):
         make_vector("MT1", task="reach-v3", envs_per_task=2, devices=[other_process])
+
+
+def test_independent_runs_take_turns_and_report_each_exit(tmp_path, monkeypatch):
+    script = tmp_path / "run.py"
+    code = "import sys, time\ntime.sleep(0.5)\nprint('ran', sys.argv[1])\nsys.exit(int(sys.argv[1]))\n"
+    script.write_text(code)
+    logs = [tmp_path / f"{i}.log" for i in range(3)]
+    t0 = time.perf_counter()
+    codes = distributed.run_independent([[str(script), str(i)] for i in range(3)], logs, 2, cpu=True)
+    assert codes == [0, 1, 2]
+    assert [log.read_text().strip() for log in logs] == ["ran 0", "ran 1", "ran 2"]
+    assert time.perf_counter() - t0 >= 1.0  # two at a time: the third waited for a slot
+    monkeypatch.setenv("CUDA_VISIBLE_DEVICES", "0")
+    with pytest.raises(ValueError, match="2 processes at a time need 2 GPUs, 1 visible"):
+        distributed.run_independent([[str(script), "0"]], logs[:1], 2)

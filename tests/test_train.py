@@ -2,7 +2,9 @@
 a GPU benchmark. Two tasks of one scene, a tiny batch and 10-step episodes keep it short."""
 
 import dataclasses
+import json
 import sys
+from pathlib import Path
 
 import jax
 import numpy as np
@@ -134,3 +136,36 @@ def test_several_gpus_train_in_one_process_each(monkeypatch):
     monkeypatch.delenv(distributed.PROCESS_ID)
     monkeypatch.setattr(distributed, "visible_gpus", lambda: [])
     assert ppo.one_process_per_gpu("all") is None  # host devices (no GPU): one process
+
+
+def test_seeds_in_parallel_make_one_summary(tmp_path, monkeypatch):
+    """`--parallel 2`: each seed is this script run on its own with that seed; their results,
+    faked here, become one summary with the IQM over seeds, each seed's log beside it."""
+    started = []
+
+    def run_each(commands, logs, parallel, cpu=False):
+        started.append(parallel)
+        for command, log in zip(commands, logs, strict=True):
+            seed = int(command[len(command) - 1 - command[::-1].index("--seeds") + 1])
+            out = command[len(command) - 1 - command[::-1].index("--out") + 1]
+            rates = {"reach-v3": 0.5 + seed / 4, "push-v3": 0.25}
+            row = {"updates": 1, "env_steps": 8, "wall_s": 1.0, "train_success": None, "loss": 0.1}
+            row |= {"train_success_per_task": rates, "approx_kl": 0.0}
+            run = {"config": {"seed": seed}, "curve": [row], "eval_success": sum(rates.values()) / 2}
+            run |= {"eval_success_per_task": rates, "train_s": 1.0, "eval_s": 1.0}
+            Path(f"{out}.json").write_text(json.dumps({"device": "test device", "runs": [run]}))
+            log.write_text(f"seed {seed} trained\n")
+        return [0] * len(commands)
+
+    monkeypatch.setattr(distributed, "run_independent", run_each)
+    stem = tmp_path / "run"
+    argv = ["train_mt_ppo.py", "--set", "reach-v3,push-v3", "--seeds", "0", "1", "--parallel", "2"]
+    monkeypatch.setattr(sys, "argv", [*argv, "--out", str(stem)])
+    with pytest.raises(SystemExit) as exit:
+        ppo.main()
+    assert exit.value.code == 0 and started == [2]
+    summary = json.loads(Path(f"{stem}.json").read_text())
+    assert [r["config"]["seed"] for r in summary["runs"]] == [0, 1]
+    assert summary["device"] == "test device" and summary["eval_success"] == [0.375, 0.5]
+    assert "iqm" in summary and len(summary["iqm_ci95"]) == 2
+    assert Path(f"{stem}-seed1.log").read_text() == "seed 1 trained\n"

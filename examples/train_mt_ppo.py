@@ -919,9 +919,14 @@ def seeds_in_parallel(args: argparse.Namespace) -> int:
             stem = write_results(runs, args, children[0]["device"])
             for seed in args.seeds:  # each seed's whole output beside the summary
                 Path(f"{tmp}/seed{seed}.log").replace(f"{stem}-seed{seed}.log")
-    failed = [seed for seed in args.seeds if seed not in done]
+        failed = [seed for seed in args.seeds if seed not in done]
+        if failed and not children:  # no summary: the logs go with the temporary directory
+            for seed in failed:
+                tail = Path(f"{tmp}/seed{seed}.log").read_text(errors="replace").splitlines()[-20:]
+                print(f"seed {seed} failed; its log ends:", *tail, sep="\n", file=sys.stderr, flush=True)
     if failed:
-        print(f"seeds {failed} failed: see {'their logs' if children else 'the logs above'}", flush=True)
+        where = f" (logs: {stem}-seed<k>.log)" if children else ""
+        print(f"seeds {failed} failed{where}", flush=True)
     return 1 if failed else 0
 
 

@@ -28,6 +28,7 @@ In such a run, arrays that span the devices are global: read a replicated one (a
 from __future__ import annotations
 
 import argparse
+import atexit
 import os
 import signal
 import socket
@@ -57,6 +58,9 @@ def initialize() -> bool:
         num_processes=int(os.environ[NUM_PROCESSES]),
         process_id=int(os.environ[PROCESS_ID]),
     )
+    # Leave together: without it, process 0 (the coordinator) may exit first, and the others then
+    # log a screenful of failed gRPC calls on their way out.
+    atexit.register(jax.distributed.shutdown)
     return True
 
 

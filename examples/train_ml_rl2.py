@@ -2,6 +2,7 @@
 the meta-test in jitted loops.
 
     python examples/train_ml_rl2.py --set ML10      # the GPU run (no result recorded yet)
+    python examples/train_ml_rl2.py --set ML10 --seeds 0 1 2 3 --parallel 4  # four seeds, a GPU each
     python examples/train_ml_rl2.py --set ML1 --task reach-v3 --envs-per-task 2 --max-episode-steps 10 \
         --episodes-per-trial 2 --unroll 10 --minibatches 2 --updates 2 --eval-envs-per-task 2  # CPU smoke run
 
@@ -650,6 +651,12 @@ def main() -> None:
         help="start each env at a random point of its first trial",
     )
     parser.add_argument("--seeds", type=int, nargs="+", default=[0])
+    parser.add_argument(
+        "--parallel",
+        type=int,
+        default=1,
+        help="seeds trained at once, each in its own process on a GPU of its own (1: one after another)",
+    )
     parser.add_argument("--minutes", type=float, default=8.0, help="wall clock per seed, compile included")
     parser.add_argument("--updates", type=int, default=None, help="stop after this many updates instead")
     parser.add_argument("--log-every", type=int, default=10, help="updates per jitted chunk")
@@ -660,6 +667,17 @@ def main() -> None:
         "--out", default=None, help="result stem (default: benchmarks/results/train/train-...)"
     )
     args = parser.parse_args()
+    if args.parallel > 1 and len(args.seeds) > 1:
+        try:
+            code = ppo.seeds_in_parallel(
+                args,
+                __file__,
+                lambda runs, device: write_results(runs, args, device),
+                lambda run: f"meta-test success {run['meta_test_success']:.3f}",
+            )
+        except ValueError as error:
+            parser.error(str(error))
+        sys.exit(code)
 
     runs = []
     for seed in args.seeds:
@@ -695,8 +713,14 @@ def main() -> None:
         )
         runs.append(run)
     device = jax.devices()[0]
+    write_results(runs, args, getattr(device, "device_kind", str(device)))
+
+
+def write_results(runs: list[dict], args: argparse.Namespace, device: str) -> str:
+    """The runs' JSON (with the IQM and its CI over seeds) and learning-curve PNG; returns their
+    path without the suffix."""
     summary: dict[str, Any] = {
-        "device": getattr(device, "device_kind", str(device)),
+        "device": device,
         "commit": ppo._commit(),
         "date": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
         "command": shlex.join(["python", *sys.argv]),
@@ -721,6 +745,7 @@ def main() -> None:
     Path(f"{stem}.json").write_text(json.dumps(summary, indent=2))
     plotted = ppo.save_plot(_plot, runs, Path(f"{stem}.png"))
     print(f"-> {stem}.json" + (f", {stem}.png" if plotted else ""))
+    return stem
 
 
 if __name__ == "__main__":

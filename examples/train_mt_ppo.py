@@ -847,10 +847,20 @@ def main() -> None:
     if args.parallel > 1 and len(args.seeds) > 1:
         if args.devices != "1":
             parser.error("--parallel trains each seed on one device: leave --devices at 1")
+        video = (
+            (lambda seed: ["--video", str(args.video / f"seed{seed}")]) if args.video else (lambda seed: [])
+        )
         try:
-            sys.exit(seeds_in_parallel(args))
+            code = seeds_in_parallel(
+                args,
+                __file__,
+                lambda runs, device: write_results(runs, args, device),
+                lambda run: f"evaluation success {run['eval_success']:.3f}",
+                video,
+            )
         except ValueError as error:
             parser.error(str(error))
+        sys.exit(code)
     distributed.initialize()  # one process per GPU, when started by `python -m mwjax.distributed`
 
     runs = []
@@ -895,19 +905,25 @@ def main() -> None:
         write_results(runs, args, getattr(device, "device_kind", str(device)))
 
 
-def seeds_in_parallel(args: argparse.Namespace) -> int:
-    """`--parallel N`: each seed trained by this script in a process of its own, N at a time,
-    each on a GPU of its own (`mwjax.distributed.run_independent`); then one summary of all of
-    them, as a sequential run writes it. Returns 0, or 1 if a seed's run failed."""
+def seeds_in_parallel(
+    args: argparse.Namespace,
+    script: str,
+    write: Callable[[list[dict], str], str],
+    describe: Callable[[dict], str],
+    extra: Callable[[int], list[str]] = lambda seed: [],
+) -> int:
+    """`--parallel N` of a training script (this one, `train_ml_rl2.py`): each seed trained by
+    `script` in a process of its own, N at a time, each on a GPU of its own
+    (`mwjax.distributed.run_independent`), with `extra(seed)` options; then `write(runs,
+    device)` writes one summary of them all, as a sequential run does, and returns its stem.
+    `describe(run)` is a seed's line. Returns 0, or 1 if a seed's run failed."""
     cpu = os.environ.get("JAX_PLATFORMS") == "cpu" or not distributed.visible_gpus()
     with tempfile.TemporaryDirectory(prefix="mwjax-seeds-") as tmp:
         commands, logs = [], []
         for seed in args.seeds:
             # The last occurrence of an option wins: each child trains its one seed.
-            own = ["--seeds", str(seed), "--parallel", "1", "--out", f"{tmp}/seed{seed}"]
-            if args.video is not None:
-                own += ["--video", str(args.video / f"seed{seed}")]
-            commands.append([__file__, *sys.argv[1:], *own])
+            own = ["--seeds", str(seed), "--parallel", "1", "--out", f"{tmp}/seed{seed}", *extra(seed)]
+            commands.append([script, *sys.argv[1:], *own])
             logs.append(Path(tmp) / f"seed{seed}.log")
         codes = distributed.run_independent(commands, logs, args.parallel, cpu=cpu)
         done = [seed for seed, code in zip(args.seeds, codes, strict=True) if code == 0]
@@ -915,8 +931,8 @@ def seeds_in_parallel(args: argparse.Namespace) -> int:
         if children:
             runs = [child["runs"][0] for child in children]
             for seed, run in zip(done, runs, strict=True):
-                print(f"seed {seed}: evaluation success {run['eval_success']:.3f}", flush=True)
-            stem = write_results(runs, args, children[0]["device"])
+                print(f"seed {seed}: {describe(run)}", flush=True)
+            stem = write(runs, children[0]["device"])
             for seed in args.seeds:  # each seed's whole output beside the summary
                 Path(f"{tmp}/seed{seed}.log").replace(f"{stem}-seed{seed}.log")
         failed = [seed for seed in args.seeds if seed not in done]

@@ -3,12 +3,17 @@ benchmark. A custom ML set of two tasks of one scene (reach to train, push to te
 4-step episodes and 2-episode trials keep it short; the envs start in lockstep (their staggered
 starts have their own test) so that every two updates end an episode and every four a trial."""
 
+import json
+import sys
+from pathlib import Path
+
 import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
 
 from examples import train_ml_rl2 as rl2
+from mwjax import distributed
 from mwjax.benchmarks import custom_ml
 
 EPISODE = 4
@@ -166,3 +171,31 @@ def test_train_resumes_from_its_checkpoint(tmp_path):
     assert 0.0 <= first["meta_test_success"] <= 1.0
     second = rl2.train(CONFIG, log_every=1, max_updates=2, checkpoint=stem)
     assert [r["updates"] for r in second["curve"]] == [1, 2]
+
+
+def test_seeds_in_parallel_make_one_summary(tmp_path, monkeypatch):
+    """`--parallel 2` (the PPO example's helper): two seeds' results, faked here, become one
+    summary with the IQM over seeds."""
+
+    def run_each(commands, logs, parallel, cpu=False):
+        for command, log in zip(commands, logs, strict=True):
+            seed = int(command[len(command) - command[::-1].index("--seeds")])
+            out = command[len(command) - command[::-1].index("--out")]
+            per_task = {"push-v3": 0.5 + seed / 4}
+            run = {"name": "ML10", "curve": [], "meta_test_success": per_task["push-v3"]}
+            run |= {"meta_test_success_per_task": per_task, "config": {"seed": seed}}
+            Path(f"{out}.json").write_text(json.dumps({"device": "test device", "runs": [run]}))
+            log.write_text("trained\n")
+        return [0] * len(commands)
+
+    monkeypatch.setattr(distributed, "run_independent", run_each)
+    monkeypatch.setattr(rl2.ppo, "save_plot", lambda plot, runs, path: False)
+    stem = tmp_path / "run"
+    argv = ["train_ml_rl2.py", "--seeds", "0", "1", "--parallel", "2", "--out", str(stem)]
+    monkeypatch.setattr(sys, "argv", argv)
+    with pytest.raises(SystemExit) as exit:
+        rl2.main()
+    assert exit.value.code == 0
+    summary = json.loads(Path(f"{stem}.json").read_text())
+    assert summary["meta_test_success"] == [0.5, 0.75] and "iqm_ci95" in summary
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["run-seed0.log", "run-seed1.log", "run.json"]

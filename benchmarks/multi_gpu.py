@@ -235,9 +235,11 @@ def main() -> None:
     args = parser.parse_args()
     if args.child is not None:
         distributed.initialize()
-        row = measure(args)
+        row = json.dumps(measure(args))
         if distributed.is_main():
-            print(json.dumps(row), flush=True)
+            # On stderr too, which a log keeps even if the parent dies before writing its JSON.
+            print(f"[{args.child} device(s)] result: {row}", file=sys.stderr, flush=True)
+            print(row, flush=True)
         return
 
     counts = sorted(set(args.devices))

@@ -55,6 +55,7 @@ from jax.sharding import PartitionSpec as P
 
 import mwjax
 from mwjax import distributed, progress, rendering
+from mwjax.benchmarks import parse_tasks
 from mwjax.evaluation import evaluator
 from mwjax.observation import OBS_SIZE
 from mwjax.sharding import AXIS
@@ -765,6 +766,13 @@ def _commit() -> str:
         return "unknown"
 
 
+def task_set(text: str) -> str | tuple[str, ...]:
+    """`--set` as `Config.task_set` takes it: `mwjax.benchmarks.parse_tasks`, a list of tasks as
+    a tuple."""
+    tasks = parse_tasks(text)
+    return tasks if isinstance(tasks, str) else tuple(tasks)
+
+
 def one_process_per_gpu(devices: str) -> int | None:
     """On GPUs, `--devices N` (N > 1, or `all`) reruns this script as one process per GPU
     (`python -m mwjax.distributed`) and returns the run's exit code: in one process, an update's
@@ -866,7 +874,7 @@ def main() -> None:
     runs = []
     for seed in args.seeds:
         config = Config(
-            task_set=tuple(args.set.split(",")) if "," in args.set else args.set,
+            task_set=task_set(args.set),
             envs_per_task=args.envs_per_task,
             unroll=args.unroll,
             minibatches=args.minibatches,

@@ -54,7 +54,7 @@ def main() -> None:
 
     print(f"{args.set} on {args.devices} of {jax.devices()}", flush=True)
     config = ppo.Config(
-        task_set=tuple(args.set.split(",")) if "," in args.set else args.set,
+        task_set=ppo.task_set(args.set),
         envs_per_task=args.envs_per_task,
         unroll=args.unroll,
         minibatches=args.minibatches,

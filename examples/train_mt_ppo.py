@@ -773,14 +773,19 @@ def task_set(text: str) -> str | tuple[str, ...]:
     return tasks if isinstance(tasks, str) else tuple(tasks)
 
 
+def _gpus() -> list[str]:
+    """The GPUs a run of this script would use: none when JAX is kept to the CPU."""
+    return [] if os.environ.get("JAX_PLATFORMS") == "cpu" else distributed.visible_gpus()
+
+
 def one_process_per_gpu(devices: str) -> int | None:
     """On GPUs, `--devices N` (N > 1, or `all`) reruns this script as one process per GPU
     (`python -m mwjax.distributed`) and returns the run's exit code: in one process, an update's
     all-reduces between Warp's calls hang on 4 GPUs (docs/multi-gpu.md). None: train here (one
     device, host devices, or already one of the processes)."""
-    if devices == "1" or distributed.launched() or os.environ.get("JAX_PLATFORMS") == "cpu":
+    if devices == "1" or distributed.launched():
         return None
-    gpus = distributed.visible_gpus()
+    gpus = _gpus()
     n = len(gpus) if devices == "all" else int(devices)
     if len(gpus) < 2 or n < 2:
         return None
@@ -925,7 +930,7 @@ def seeds_in_parallel(
     (`mwjax.distributed.run_independent`), with `extra(seed)` options; then `write(runs,
     device)` writes one summary of them all, as a sequential run does, and returns its stem.
     `describe(run)` is a seed's line. Returns 0, or 1 if a seed's run failed."""
-    cpu = os.environ.get("JAX_PLATFORMS") == "cpu" or not distributed.visible_gpus()
+    cpu = not _gpus()
     with tempfile.TemporaryDirectory(prefix="mwjax-seeds-") as tmp:
         commands, logs = [], []
         for seed in args.seeds:

@@ -3,16 +3,20 @@ benchmark. A custom ML set of two tasks of one scene (reach to train, push to te
 4-step episodes and 2-episode trials keep it short; the envs start in lockstep (their staggered
 starts have their own test) so that every two updates end an episode and every four a trial."""
 
+import dataclasses
 import json
 import sys
 from pathlib import Path
+from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
 
+import mwjax
 from examples import train_ml_rl2 as rl2
+from mwjax import policies
 from mwjax import distributed
 from mwjax.benchmarks import custom_ml
 
@@ -161,6 +165,50 @@ def test_the_meta_test_runs_on_the_test_tasks(trainer):
     rate = np.asarray(result.success_rate)
     assert np.all((rate >= 0) & (rate <= 1))
     np.testing.assert_allclose(rate, np.asarray(result.success).mean(axis=1))
+
+
+class _Scripted(NamedTuple):
+    episodes: jax.Array  # how many of a trial's episodes the expert acts in
+    log_std: jax.Array
+
+
+class _ExpertTrainer(rl2.Trainer):
+    """The meta-test's protocol driven by reach's scripted expert in place of the GRU, on envs that
+    show the goal. The expert acts in a trial's first `params.episodes` episodes (counted in the
+    hidden state from the "episode just ended" input) and does nothing after them."""
+
+    def _make_env(self, envs_per_task, split):
+        cfg = self.config
+        return mwjax.make(
+            cfg.task_set, split=split, envs_per_task=envs_per_task, max_episode_steps=cfg.max_episode_steps,
+            goal_sampling="on_request", partially_observable=False,
+        )  # fmt: skip
+
+    @staticmethod
+    def inputs(norm, obs, prev_action, prev_reward, first):
+        return jnp.concatenate([obs, first[:, None].astype(jnp.float32)], axis=-1)
+
+    @staticmethod
+    def core(params, hidden, inputs):
+        episode = hidden[:, 0] + inputs[:, -1]
+        action = jax.vmap(policies.expert("reach-v3"))(inputs[:, :-1])
+        action = jnp.where((episode <= params.episodes)[:, None], action, 0.0)
+        return hidden.at[:, 0].set(episode), action, jnp.zeros(inputs.shape[0])
+
+
+def test_the_meta_test_counts_each_goals_evaluation_episodes():
+    """One adaptation episode, then 3 evaluation episodes, each ending at its success: an expert
+    acting throughout solves all 3, one that stops after the first evaluation episode solves 1 of 3
+    (an episode that did not restart at success would stay solved), one that never acts none."""
+    config = dataclasses.replace(
+        CONFIG, task_set=custom_ml(["push-v3"], ["reach-v3"]), max_episode_steps=100,
+        adaptation_episodes=1, evaluation_episodes=3, eval_rounds=1,
+    )  # fmt: skip
+    meta_test = _ExpertTrainer(config).meta_tester()
+    quiet = jnp.full(4, -20.0)  # adaptation samples the mean action
+    for episodes, rate in [(4, 1.0), (2, 1 / 3), (0, 0.0)]:
+        result = meta_test(_Scripted(jnp.float32(episodes), quiet), None, jax.random.key(0))
+        np.testing.assert_allclose(np.asarray(result.success), rate, err_msg=f"expert in {episodes} episodes")
 
 
 @pytest.mark.slow

@@ -16,8 +16,7 @@ import pytest
 
 import mwjax
 from examples import train_ml_rl2 as rl2
-from mwjax import policies
-from mwjax import distributed
+from mwjax import distributed, policies
 from mwjax.benchmarks import custom_ml
 
 EPISODE = 4

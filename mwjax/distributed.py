@@ -29,14 +29,17 @@ from __future__ import annotations
 
 import argparse
 import atexit
+import contextlib
 import os
 import signal
 import socket
 import subprocess
 import sys
+import threading
 import time
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from pathlib import Path
+from typing import Any
 
 PROCESS_ID = "MWJAX_PROCESS_ID"
 NUM_PROCESSES = "MWJAX_NUM_PROCESSES"
@@ -160,13 +163,42 @@ def run_independent(
     """Run each command (a Python script and its arguments) as a process of its own, not a
     process group: at most `parallel` at a time, each on a GPU no other one uses (`cpu`: on the
     host), its output to its log. Every 30 s it prints each running process's last line. Returns
-    the exit codes, in the commands' order. For independent runs, e.g. seeds of one experiment."""
+    the exit codes, in the commands' order. For independent runs, e.g. seeds of one experiment.
+
+    Ctrl-C or SIGTERM (a job's time limit, `timeout`) stops it in order: the running processes
+    are terminated and it returns, their codes and those of runs never started negative, so that
+    the caller can still keep what the finished runs produced."""
     gpus = None if cpu else visible_gpus()
     if gpus is not None and len(gpus) < parallel:
         raise ValueError(f"{parallel} processes at a time need {parallel} GPUs, {len(gpus)} visible")
     pending = list(range(len(commands)))
     running: dict[int, tuple[int, subprocess.Popen]] = {}  # slot -> (command, process)
     codes = [0] * len(commands)
+    with _sigterm_as_interrupt():
+        try:
+            _schedule(commands, logs, parallel, gpus, pending, running, codes)
+        except KeyboardInterrupt:
+            for _, process in running.values():
+                process.terminate()
+            for i, process in running.values():
+                codes[i] = process.wait()
+            for i in pending:
+                codes[i] = -int(signal.SIGTERM)
+            stopped = sorted([i + 1 for i, _ in running.values()] + [i + 1 for i in pending])
+            print(f"interrupted: runs {stopped} stopped or never started", flush=True)
+    return codes
+
+
+def _schedule(
+    commands: Sequence[Sequence[str]],
+    logs: Sequence[Path],
+    parallel: int,
+    gpus: list[str] | None,
+    pending: list[int],
+    running: dict[int, tuple[int, subprocess.Popen]],
+    codes: list[int],
+) -> None:
+    """`run_independent`'s loop; `pending`, `running` and `codes` are updated in place."""
     shown = time.perf_counter()
     while pending or running:
         for slot in range(parallel):
@@ -193,7 +225,23 @@ def run_independent(
             for i, _ in running.values():
                 print(f"  run {i + 1}: {_last_line(logs[i])}", flush=True)
         time.sleep(0.5)
-    return codes
+
+
+@contextlib.contextmanager
+def _sigterm_as_interrupt() -> Iterator[None]:
+    """SIGTERM raises KeyboardInterrupt inside the block (in the main thread; elsewhere no change)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def interrupt(signum: int, frame: Any) -> None:
+        raise KeyboardInterrupt
+
+    previous = signal.signal(signal.SIGTERM, interrupt)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
 
 
 def _last_line(path: Path) -> str:

@@ -11,6 +11,8 @@ tests/test_sharding.py (with FMA, a device's share of the batch may round a rewa
 from __future__ import annotations
 
 import os
+import signal
+import subprocess
 import sys
 import time
 from pathlib import Path
@@ -147,3 +149,29 @@ def test_independent_runs_take_turns_and_report_each_exit(tmp_path, monkeypatch)
     monkeypatch.setenv("CUDA_VISIBLE_DEVICES", "0")
     with pytest.raises(ValueError, match="2 processes at a time need 2 GPUs, 1 visible"):
         distributed.run_independent([[str(script), "0"]], logs[:1], 2)
+
+
+def test_independent_runs_stop_in_order_on_sigterm(tmp_path):
+    """A time limit's SIGTERM ends the running runs and returns, keeping the finished one's code
+    (what lets a training script still write the summary of the seeds that finished)."""
+    run = tmp_path / "run.py"
+    run.write_text("import sys, time\ntime.sleep(float(sys.argv[1]))\nprint('ran')\n")
+    driver = tmp_path / "driver.py"
+    driver.write_text(
+        "from pathlib import Path\nfrom mwjax import distributed\n"
+        f"logs = [Path({str(tmp_path)!r}) / f'{{i}}.log' for i in range(3)]\n"
+        f"commands = [[{str(run)!r}, seconds] for seconds in ('0', '600', '0')]\n"
+        "print('codes', distributed.run_independent(commands, logs, 2, cpu=True), flush=True)\n"
+    )
+    output = tmp_path / "driver.log"
+    with open(output, "w") as out:
+        process = subprocess.Popen([sys.executable, str(driver)], stdout=out, cwd=Path(__file__).parents[1])
+    deadline = time.perf_counter() + 60
+    while "run 3/3 done" not in output.read_text():  # runs 1 and 3 done, run 2 sleeping
+        assert time.perf_counter() < deadline and process.poll() is None
+        time.sleep(0.2)
+    process.send_signal(signal.SIGTERM)
+    assert process.wait(timeout=30) == 0
+    out = output.read_text()
+    assert f"codes [0, {-int(signal.SIGTERM)}, 0]" in out
+    assert "interrupted: runs [2] stopped or never started" in out

@@ -205,7 +205,7 @@ class Trainer:
             gru_h=_dense_init(keys[2], h, 3 * h, 1.0),
             policy=_dense_init(keys[3], h, 4, 0.01),
             value=_dense_init(keys[4], h, 1, 1.0),
-            log_std=jnp.full(4, cfg.init_log_std),
+            log_std=jnp.full(4, cfg.init_log_std, jnp.float32),  # not weak: one compile
         )
 
     @staticmethod

@@ -293,7 +293,7 @@ class Trainer:
         own = {"shared": 0, "multi-head": 1, "per-task": len(sizes)}[cfg.architecture]
         params = Params(
             policy=_mlp_init(policy_key, [*sizes, 4], 0.01, own, self.n_tasks),
-            log_std=jnp.full((self.n_tasks, 4), cfg.init_log_std),
+            log_std=jnp.full((self.n_tasks, 4), cfg.init_log_std, jnp.float32),  # not weak: one compile
             value=_mlp_init(value_key, [*sizes, 1], 1.0, own, self.n_tasks),
         )
         carry = self._init_rest(params, env_key, cut_key, key)

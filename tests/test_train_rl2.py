@@ -50,8 +50,11 @@ def _leaves(tree):
 def test_updates_are_finite_and_change_the_policy(trainer):
     carry = trainer.init(jax.random.key(0))
     before = _leaves(carry.params)
+    types = jax.tree.map(jax.typeof, carry)
     for _ in range(2):
         carry, metrics = trainer.train_chunk(carry, 2)
+        # The carry comes back as it went in (dtypes, weak types): later chunks do not compile again.
+        assert jax.tree.map(jax.typeof, carry) == types
         assert np.isfinite(metrics.loss) and np.isfinite(metrics.approx_kl)
         # Two updates are one episode: every env ended exactly one.
         np.testing.assert_array_equal(metrics.episodes, [CONFIG.envs_per_task])

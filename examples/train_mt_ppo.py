@@ -947,11 +947,15 @@ def seeds_in_parallel(
                 print(f"seed {seed}: {describe(run)}", flush=True)
             stem = write(runs, children[0]["device"])
             for seed in args.seeds:  # each seed's whole output beside the summary
-                Path(f"{tmp}/seed{seed}.log").replace(f"{stem}-seed{seed}.log")
+                log = Path(f"{tmp}/seed{seed}.log")
+                if log.exists():  # not if the run was stopped before this seed started
+                    log.replace(f"{stem}-seed{seed}.log")
         failed = [seed for seed in args.seeds if seed not in done]
         if failed and not children:  # no summary: the logs go with the temporary directory
             for seed in failed:
-                tail = Path(f"{tmp}/seed{seed}.log").read_text(errors="replace").splitlines()[-20:]
+                log = Path(f"{tmp}/seed{seed}.log")
+                lines = log.read_text(errors="replace").splitlines() if log.exists() else ["(never started)"]
+                tail = lines[-20:]
                 print(f"seed {seed} failed; its log ends:", *tail, sep="\n", file=sys.stderr, flush=True)
     if failed:
         where = f" (logs: {stem}-seed<k>.log)" if children else ""

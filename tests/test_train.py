@@ -141,6 +141,19 @@ def test_several_gpus_train_in_one_process_each(monkeypatch):
     assert ppo.one_process_per_gpu("all") is None  # host devices (no GPU): one process
 
 
+def _fake_seed_run(command: list[str], log: Path) -> None:
+    """What a seed's child run leaves: its JSON at its `--out` and its log."""
+    seed = int(command[len(command) - 1 - command[::-1].index("--seeds") + 1])
+    out = command[len(command) - 1 - command[::-1].index("--out") + 1]
+    rates = {"reach-v3": 0.5 + seed / 4, "push-v3": 0.25}
+    row = {"updates": 1, "env_steps": 8, "wall_s": 1.0, "train_success": None, "loss": 0.1}
+    row |= {"train_success_per_task": rates, "approx_kl": 0.0}
+    run = {"config": {"seed": seed}, "curve": [row], "eval_success": sum(rates.values()) / 2}
+    run |= {"eval_success_per_task": rates, "train_s": 1.0, "eval_s": 1.0}
+    Path(f"{out}.json").write_text(json.dumps({"device": "test device", "runs": [run]}))
+    log.write_text(f"seed {seed} trained\n")
+
+
 def test_seeds_in_parallel_make_one_summary(tmp_path, monkeypatch):
     """`--parallel 2`: each seed is this script run on its own with that seed; their results,
     faked here, become one summary with the IQM over seeds, each seed's log beside it."""
@@ -149,15 +162,7 @@ def test_seeds_in_parallel_make_one_summary(tmp_path, monkeypatch):
     def run_each(commands, logs, parallel, cpu=False):
         started.append(parallel)
         for command, log in zip(commands, logs, strict=True):
-            seed = int(command[len(command) - 1 - command[::-1].index("--seeds") + 1])
-            out = command[len(command) - 1 - command[::-1].index("--out") + 1]
-            rates = {"reach-v3": 0.5 + seed / 4, "push-v3": 0.25}
-            row = {"updates": 1, "env_steps": 8, "wall_s": 1.0, "train_success": None, "loss": 0.1}
-            row |= {"train_success_per_task": rates, "approx_kl": 0.0}
-            run = {"config": {"seed": seed}, "curve": [row], "eval_success": sum(rates.values()) / 2}
-            run |= {"eval_success_per_task": rates, "train_s": 1.0, "eval_s": 1.0}
-            Path(f"{out}.json").write_text(json.dumps({"device": "test device", "runs": [run]}))
-            log.write_text(f"seed {seed} trained\n")
+            _fake_seed_run(command, log)
         return [0] * len(commands)
 
     monkeypatch.setattr(distributed, "run_independent", run_each)
@@ -172,3 +177,25 @@ def test_seeds_in_parallel_make_one_summary(tmp_path, monkeypatch):
     assert summary["device"] == "test device" and summary["eval_success"] == [0.375, 0.5]
     assert "iqm" in summary and len(summary["iqm_ci95"]) == 2
     assert Path(f"{stem}-seed1.log").read_text() == "seed 1 trained\n"
+
+
+def test_seeds_stopped_by_a_time_limit_still_leave_the_finished_ones_summary(tmp_path, monkeypatch):
+    """A SIGTERM stops `run_independent` with seed 0 done, seed 1 stopped mid-run and seed 2 never
+    started: the summary holds seed 0, the logs that exist lie beside it, the exit code is 1."""
+
+    def stopped(commands, logs, parallel, cpu=False):
+        _fake_seed_run(commands[0], logs[0])
+        logs[1].write_text("seed 1 training\n")
+        return [0, -15, -15]
+
+    monkeypatch.setattr(distributed, "run_independent", stopped)
+    stem = tmp_path / "run"
+    argv = ["train_mt_ppo.py", "--set", "reach-v3,push-v3", "--seeds", "0", "1", "2", "--parallel", "2"]
+    monkeypatch.setattr(sys, "argv", [*argv, "--out", str(stem)])
+    with pytest.raises(SystemExit) as exit:
+        ppo.main()
+    assert exit.value.code == 1
+    summary = json.loads(Path(f"{stem}.json").read_text())
+    assert [r["config"]["seed"] for r in summary["runs"]] == [0]
+    assert Path(f"{stem}-seed1.log").read_text() == "seed 1 training\n"
+    assert not Path(f"{stem}-seed2.log").exists()

@@ -57,7 +57,7 @@ import numpy as np
 import optax
 
 import mwjax
-from mwjax.benchmarks import Benchmark
+from mwjax.benchmarks import Benchmark, benchmark
 from mwjax.observation import OBS_SIZE
 
 try:  # imported as `examples.train_ml_rl2` (tests) or run as a script from examples/
@@ -667,6 +667,10 @@ def main() -> None:
         "--out", default=None, help="result stem (default: benchmarks/results/train/train-...)"
     )
     args = parser.parse_args()
+    try:
+        ppo.build_kernels(benchmark(args.set, task=args.task))
+    except ValueError as error:
+        parser.error(str(error))
     if args.parallel > 1 and len(args.seeds) > 1:
         try:
             code = ppo.seeds_in_parallel(

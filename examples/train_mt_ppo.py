@@ -778,6 +778,18 @@ def _gpus() -> list[str]:
     return [] if os.environ.get("JAX_PLATFORMS") == "cpu" else distributed.visible_gpus()
 
 
+def build_kernels(tasks: Any) -> None:
+    """On GPUs, first: Warp's kernel modules for every scene of `tasks` (a set name, task list or
+    `Benchmark`), built side by side in processes (`mwjax.kernels`) instead of one after another
+    inside the first chunk, minutes on a fresh machine; at once when Warp's cache has them. The
+    processes this run starts (one per GPU, `--parallel` seeds) then find them there. Not counted
+    in `--minutes`."""
+    if _gpus() and not distributed.launched():
+        from mwjax import kernels
+
+        kernels.build(tasks)
+
+
 def one_process_per_gpu(devices: str) -> int | None:
     """On GPUs, `--devices N` (N > 1, or `all`) reruns this script as one process per GPU
     (`python -m mwjax.distributed`) and returns the run's exit code: in one process, an update's
@@ -851,6 +863,10 @@ def main() -> None:
     )
     parser.add_argument("--video-size", type=int, default=128, help="video frames' width and height")
     args = parser.parse_args()
+    try:
+        build_kernels(task_set(args.set))
+    except ValueError as error:
+        parser.error(str(error))
     try:
         code = one_process_per_gpu(args.devices)
     except ValueError as error:

@@ -40,7 +40,7 @@ from mwjax.tasks import get_task
 Scene = tuple[str, tuple[str, ...]]
 
 
-def scenes(tasks: str | Sequence[str]) -> list[Scene]:
+def scenes(tasks: str | Sequence[str] | benchmarks.Benchmark) -> list[Scene]:
     """The (scene, mocap bodies) pairs that `mwjax.make` builds physics for, over every split of
     the set (a meta-learning set's train and test envs group their tasks separately)."""
     bench = benchmarks.benchmark(tasks)
@@ -52,7 +52,7 @@ def scenes(tasks: str | Sequence[str]) -> list[Scene]:
 
 
 def build(
-    tasks: str | Sequence[str],
+    tasks: str | Sequence[str] | benchmarks.Benchmark,
     config: PhysicsConfig | None = None,
     workers: int | None = None,
     force: bool = False,

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from examples import train_mt_ppo as ppo
-from mwjax import distributed
+from mwjax import distributed, kernels
 
 CONFIG = ppo.Config(
     task_set=("reach-v3", "push-v3"),
@@ -155,8 +155,9 @@ def _fake_seed_run(command: list[str], log: Path) -> None:
 
 
 def test_seeds_in_parallel_make_one_summary(tmp_path, monkeypatch):
-    """`--parallel 2`: each seed is this script run on its own with that seed; their results,
-    faked here, become one summary with the IQM over seeds, each seed's log beside it."""
+    """`--parallel 2` on GPUs: Warp's kernels are built first, once; then each seed is this
+    script run on its own with that seed; their results, faked here, become one summary with the
+    IQM over seeds, each seed's log beside it."""
     started = []
 
     def run_each(commands, logs, parallel, cpu=False):
@@ -166,12 +167,14 @@ def test_seeds_in_parallel_make_one_summary(tmp_path, monkeypatch):
         return [0] * len(commands)
 
     monkeypatch.setattr(distributed, "run_independent", run_each)
+    monkeypatch.setattr(ppo, "_gpus", lambda: ["0", "1"])
+    monkeypatch.setattr(kernels, "build", lambda tasks: started.append(tasks))
     stem = tmp_path / "run"
     argv = ["train_mt_ppo.py", "--set", "reach-v3,push-v3", "--seeds", "0", "1", "--parallel", "2"]
     monkeypatch.setattr(sys, "argv", [*argv, "--out", str(stem)])
     with pytest.raises(SystemExit) as exit:
         ppo.main()
-    assert exit.value.code == 0 and started == [2]
+    assert exit.value.code == 0 and started == [("reach-v3", "push-v3"), 2]
     summary = json.loads(Path(f"{stem}.json").read_text())
     assert [r["config"]["seed"] for r in summary["runs"]] == [0, 1]
     assert summary["device"] == "test device" and summary["eval_success"] == [0.375, 0.5]

@@ -90,6 +90,14 @@ def _throughput_rows(data: dict) -> list[dict]:
     return rows
 
 
+def _warmed_up(data: dict, rows: list[dict]) -> bool:
+    """Whether the timed rollouts came after an untimed one: older files say so in the header,
+    newer ones give that rollout's seconds in each row (`first_rollout_s`, `warmup_rollout_s`)."""
+    if data.get("warmup_rollout") in (True, "True"):
+        return True
+    return all(r.get("first_rollout_s") is not None or r.get("warmup_rollout_s") is not None for r in rows)
+
+
 def _rate(row: dict) -> str:
     if row["env_steps_per_s"] is None:
         return f"refused ({row.get('refused') or 'no figure'})"
@@ -109,8 +117,7 @@ def _what(files: list[Path], data: dict) -> str:
             parts.append(
                 f"reference {ref['benchmark']} ({ref['num_envs']} envs): {ref['env_steps_per_s']:,.0f}"
             )
-        warm = data.get("warmup_rollout") in (True, "True")
-        timed = "timed after a warm-up rollout" if warm else "the first rollout timed"
+        timed = "timed after a warm-up rollout" if _warmed_up(data, rows) else "the first rollout timed"
         return f"env steps/s, {rows[0]['steps_per_rollout']}-step rollouts, {timed}: " + "; ".join(parts)
     if "mean_success_rate" in data and "set" in data:
         return (

@@ -31,6 +31,7 @@ episodes acting stochastically, then runs `--evaluation-episodes` more on the sa
 hidden state carried on and the mean action, each ending at success; meta-test success is the
 success rate of those evaluation episodes. `--eval-envs-per-task` envs per test task (each its own
 goal) times `--eval-rounds` rounds are the goals per task (the paper: 10).
+`--meta-test-train-tasks` also runs it on the train tasks (their training goals), a diagnostic.
 
 Checkpoints (`--checkpoint STEM`) hold the learner (parameters, optimizer, normalizers, key) and
 the curve; resuming starts fresh trials. Needs the `train` extra (optax); the PNG needs matplotlib.
@@ -57,6 +58,7 @@ import numpy as np
 import optax
 
 import mwjax
+from mwjax import progress
 from mwjax.benchmarks import Benchmark, benchmark
 from mwjax.observation import OBS_SIZE
 
@@ -102,6 +104,9 @@ class Config:
     evaluation_episodes: int = 3
     eval_envs_per_task: int = 10
     eval_rounds: int = 1
+    # Also meta-test on the train tasks (their training goals): a diagnostic the paper does not
+    # report, telling a policy that adapts but does not generalize from one that does not adapt.
+    meta_test_train_tasks: bool = False
 
 
 class Params(NamedTuple):
@@ -436,10 +441,18 @@ class Trainer:
         alone skip building and compiling it)."""
         return self._make_env(self.config.eval_envs_per_task, "test")
 
-    def meta_tester(self) -> Callable[[Params, ppo.Normalizers, Array], MetaTestResult]:
-        """A jitted `(params, norm, key) -> MetaTestResult` on the test tasks (module docstring)."""
+    @functools.cached_property
+    def train_tasks_eval_env(self) -> Any:
+        """The train tasks on their training goals, `eval_envs_per_task` envs each (built on first use)."""
+        return self._make_env(self.config.eval_envs_per_task, "train")
+
+    def meta_tester(self, split: str = "test") -> Callable[[Params, ppo.Normalizers, Array], MetaTestResult]:
+        """A jitted `(params, norm, key) -> MetaTestResult` on the test tasks (module docstring),
+        or with `split="train"` the same protocol on the train tasks."""
+        if split not in ("test", "train"):
+            raise ValueError(f"split must be 'test' or 'train', got {split!r}")
         cfg = self.config
-        env = self.test_env
+        env = self.test_env if split == "test" else self.train_tasks_eval_env
         n = env.num_envs
         horizon = cfg.max_episode_steps
 
@@ -589,18 +602,17 @@ def train(
             save_checkpoint(checkpoint, carry, updates, curve)
     train_s = time.perf_counter() - start
     t0 = time.perf_counter()
-    meta_test = trainer.meta_tester()
-    result = meta_test(carry.params, carry.norm, jax.random.key(config.seed + 1000))
-    success = np.asarray(result.success_rate)
-    return {
-        "config": dataclasses.asdict(config),
-        "curve": curve,
-        "train_s": train_s,
-        "eval_s": time.perf_counter() - t0,
-        "meta_test_success_per_task": dict(zip(trainer.test_env.task_list, success.tolist(), strict=True)),
-        "meta_test_success": float(success.mean()),
-        "params": carry.params,
-    }
+    run = {"config": dataclasses.asdict(config), "curve": curve, "train_s": train_s}
+    key = jax.random.key(config.seed + 1000)
+    for split in ("test", "train") if config.meta_test_train_tasks else ("test",):
+        with progress.phase(f"meta-test on the {split} tasks"):
+            result = trainer.meta_tester(split)(carry.params, carry.norm, key)
+            success = np.asarray(result.success_rate)
+        env = trainer.test_env if split == "test" else trainer.train_tasks_eval_env
+        name = "meta_test_success" if split == "test" else "meta_test_success_train_tasks"
+        run[f"{name}_per_task"] = dict(zip(env.task_list, success.tolist(), strict=True))
+        run[name] = float(success.mean())
+    return run | {"eval_s": time.perf_counter() - t0, "params": carry.params}
 
 
 def _plot(runs: list[dict], path: Path) -> None:
@@ -644,6 +656,11 @@ def main() -> None:
     parser.add_argument("--evaluation-episodes", type=int, default=d.evaluation_episodes)
     parser.add_argument("--eval-envs-per-task", type=int, default=d.eval_envs_per_task)
     parser.add_argument("--eval-rounds", type=int, default=d.eval_rounds)
+    parser.add_argument(
+        "--meta-test-train-tasks",
+        action="store_true",
+        help="also meta-test on the train tasks (their training goals): does the policy adapt at all?",
+    )
     parser.add_argument(
         "--staggered-starts",
         action=argparse.BooleanOptionalAction,
@@ -705,6 +722,7 @@ def main() -> None:
             evaluation_episodes=args.evaluation_episodes,
             eval_envs_per_task=args.eval_envs_per_task,
             eval_rounds=args.eval_rounds,
+            meta_test_train_tasks=args.meta_test_train_tasks,
         )
         checkpoint = None if args.checkpoint is None else f"{args.checkpoint}-seed{seed}"
         run = train(config, args.minutes, args.log_every, args.updates, checkpoint)
@@ -715,6 +733,10 @@ def main() -> None:
             f"({run['eval_s']:.0f}s) {run['meta_test_success_per_task']}",
             flush=True,
         )
+        if "meta_test_success_train_tasks" in run:
+            on_train = run["meta_test_success_train_tasks"]
+            per_task = run["meta_test_success_train_tasks_per_task"]
+            print(f"  on the train tasks: {on_train:.3f} {per_task}", flush=True)
         runs.append(run)
     device = jax.devices()[0]
     write_results(runs, args, getattr(device, "device_kind", str(device)))

@@ -167,6 +167,12 @@ def test_the_meta_test_runs_on_the_test_tasks(trainer):
     rate = np.asarray(result.success_rate)
     assert np.all((rate >= 0) & (rate <= 1))
     np.testing.assert_allclose(rate, np.asarray(result.success).mean(axis=1))
+    # The same protocol on the train tasks (a diagnostic), on their own env.
+    on_train = trainer.meta_tester("train")(carry.params, carry.norm, jax.random.key(6))
+    assert trainer.train_tasks_eval_env.task_list == ("reach-v3",)
+    assert on_train.success.shape == (1, CONFIG.eval_envs_per_task * CONFIG.eval_rounds)
+    with pytest.raises(ValueError, match="split must be"):
+        trainer.meta_tester("validation")
 
 
 class _Scripted(NamedTuple):
@@ -219,8 +225,12 @@ def test_train_resumes_from_its_checkpoint(tmp_path):
     first = rl2.train(CONFIG, log_every=1, max_updates=1, checkpoint=stem)
     assert [r["updates"] for r in first["curve"]] == [1]
     assert 0.0 <= first["meta_test_success"] <= 1.0
-    second = rl2.train(CONFIG, log_every=1, max_updates=2, checkpoint=stem)
+    config = dataclasses.replace(CONFIG, meta_test_train_tasks=True)
+    second = rl2.train(config, log_every=1, max_updates=2, checkpoint=stem)
     assert [r["updates"] for r in second["curve"]] == [1, 2]
+    assert list(second["meta_test_success_per_task"]) == ["push-v3"]
+    assert list(second["meta_test_success_train_tasks_per_task"]) == ["reach-v3"]
+    assert 0.0 <= second["meta_test_success_train_tasks"] <= 1.0
 
 
 def test_seeds_in_parallel_make_one_summary(tmp_path, monkeypatch):

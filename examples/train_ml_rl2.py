@@ -519,33 +519,6 @@ class Trainer:
         return jax.jit(run)
 
 
-# -- checkpoints --------------------------------------------------------------------------------
-
-
-def _learner(carry: Carry) -> tuple:
-    """What a checkpoint keeps: the env state and the trials are not (resuming starts new ones)."""
-    return (carry.params, carry.opt_state, carry.norm, jax.random.key_data(carry.key))
-
-
-def save_checkpoint(stem: str | Path, carry: Carry, updates: int, curve: list[dict]) -> None:
-    """`stem.npz` (the learner's arrays) and `stem.json` (update count and curve so far)."""
-    leaves = jax.tree.leaves(_learner(carry))
-    np.savez(f"{stem}.npz", *[np.asarray(x) for x in leaves])
-    Path(f"{stem}.json").write_text(json.dumps({"updates": updates, "curve": curve}))
-
-
-def restore_checkpoint(stem: str | Path, template: Carry) -> tuple[Carry, int, list[dict]]:
-    """`template` (a fresh `Trainer.init`) with the checkpoint's learner restored."""
-    with np.load(f"{stem}.npz") as data:
-        leaves = [jnp.asarray(data[f"arr_{i}"]) for i in range(len(data.files))]
-    params, opt_state, norm, key = jax.tree.unflatten(jax.tree.structure(_learner(template)), leaves)
-    meta = json.loads(Path(f"{stem}.json").read_text())
-    carry = template._replace(
-        params=params, opt_state=opt_state, norm=norm, key=jax.random.wrap_key_data(key)
-    )
-    return carry, meta["updates"], meta["curve"]
-
-
 # -- the run --------------------------------------------------------------------------------------
 
 
@@ -566,11 +539,13 @@ def train(
         meta = json.loads(Path(f"{checkpoint}.json").read_text())
         # Fresh trials on other goals than the first run's.
         template = trainer.init(jax.random.fold_in(jax.random.key(config.seed), meta["updates"]))
-        carry, updates, curve = restore_checkpoint(checkpoint, template)
+        carry, updates, curve = ppo.restore_checkpoint(checkpoint, template)
         print(f"resumed {checkpoint} at update {updates}", flush=True)
     else:
         carry = trainer.init(jax.random.key(config.seed))
-    budget = minutes * 60
+    # The curve's wall clock runs on across resumed runs.
+    start -= curve[-1]["wall_s"] if curve else 0.0
+    budget = minutes * 60 + (curve[-1]["wall_s"] if curve else 0.0)
     chunk_s = 0.0
     print(
         f"{trainer.env.benchmark.name}: {trainer.env.num_envs} envs, {trainer.steps_per_update:,} env steps "
@@ -599,7 +574,7 @@ def train(
         curve.append(row)
         ppo._progress(row, budget, trainer.env.task_list, rates, metrics.episodes)
         if checkpoint is not None:
-            save_checkpoint(checkpoint, carry, updates, curve)
+            ppo.save_checkpoint(checkpoint, carry, updates, curve)
     train_s = time.perf_counter() - start
     t0 = time.perf_counter()
     run = {"config": dataclasses.asdict(config), "curve": curve, "train_s": train_s}

@@ -614,6 +614,39 @@ class Trainer:
         return self.env.num_envs * self.config.unroll
 
 
+# -- checkpoints (this example's and the RL² example's carries alike) ------------------------------
+
+
+def _learner(carry: Any) -> tuple:
+    """What a checkpoint keeps: the env state and episodes are not (resuming starts new ones)."""
+    return (carry.params, carry.opt_state, carry.norm, jax.random.key_data(carry.key))
+
+
+def save_checkpoint(stem: str | Path, carry: Any, updates: int, curve: list[dict]) -> None:
+    """`stem.npz` (the learner's arrays) and `stem.json` (update count and curve so far)."""
+    leaves = jax.tree.leaves(_learner(carry))
+    np.savez(f"{stem}.npz", *[np.asarray(x) for x in leaves])
+    Path(f"{stem}.json").write_text(json.dumps({"updates": updates, "curve": curve}))
+
+
+def restore_checkpoint(stem: str | Path, template: Any) -> tuple[Any, int, list[dict]]:
+    """`template` (a fresh `Trainer.init`) with the checkpoint's learner restored, each array
+    placed as the template's is."""
+    like = jax.tree.leaves(_learner(template))
+    with np.load(f"{stem}.npz") as data:
+        if len(data.files) != len(like):
+            raise ValueError(f"{stem}.npz holds {len(data.files)} arrays, this run's learner {len(like)}")
+        leaves = [jax.device_put(data[f"arr_{i}"], t.sharding) for i, t in enumerate(like)]
+    for saved, expected in zip(leaves, like, strict=True):
+        if saved.shape != expected.shape:
+            raise ValueError(f"{stem}.npz is another configuration's ({saved.shape} vs {expected.shape})")
+    params, opt_state, norm, key = jax.tree.unflatten(jax.tree.structure(_learner(template)), leaves)
+    meta = json.loads(Path(f"{stem}.json").read_text())
+    key = jax.random.wrap_key_data(key)
+    carry = template._replace(params=params, opt_state=opt_state, norm=norm, key=key)
+    return carry, meta["updates"], meta["curve"]
+
+
 def train(
     config: Config,
     minutes: float,
@@ -623,18 +656,32 @@ def train(
     time_learner: bool = False,
     video: Path | None = None,
     video_size: int = 128,
+    checkpoint: str | Path | None = None,
 ) -> dict:
-    """Train until `minutes` of wall clock (compile included) or `max_updates`; then evaluate,
-    with `time_learner` time the learner alone against the last chunk of updates, and with
-    `video` (a folder) write one episode of the trained policy on each task as `<task>.mp4`."""
+    """Train until `minutes` of wall clock (compile included) or `max_updates` in all (counting a
+    resumed checkpoint's), saving `checkpoint` after every chunk if given; then evaluate, with
+    `time_learner` time the learner alone against the last chunk of updates, and with `video` (a
+    folder) write one episode of the trained policy on each task as `<task>.mp4`."""
     start = time.perf_counter()
     with progress.phase("building the envs and the first state"):
         trainer = Trainer(config)
-        carry = trainer.init(jax.random.key(config.seed))
-    curve: list[dict] = []
-    updates = 0
-    budget = minutes * 60
+        curve: list[dict] = []
+        updates = 0
+        if checkpoint is not None and Path(f"{checkpoint}.npz").exists():
+            if config.devices > 1:
+                raise ValueError("checkpoints are for one device; train with --devices 1")
+            done = json.loads(Path(f"{checkpoint}.json").read_text())["updates"]
+            # Fresh episodes, other than the first run's.
+            template = trainer.init(jax.random.fold_in(jax.random.key(config.seed), done))
+            carry, updates, curve = restore_checkpoint(checkpoint, template)
+            print(f"resumed {checkpoint} at update {updates}", flush=True)
+        else:
+            carry = trainer.init(jax.random.key(config.seed))
+    # The curve's wall clock runs on across resumed runs.
+    start -= curve[-1]["wall_s"] if curve else 0.0
+    budget = minutes * 60 + (curve[-1]["wall_s"] if curve else 0.0)
     chunk_s = 0.0
+    compiled = False
     print(
         f"{config.task_set}: {trainer.env.num_envs} envs, {trainer.steps_per_update:,} env steps per update",
         flush=True,
@@ -647,10 +694,11 @@ def train(
         t0 = time.perf_counter()
         # The first chunk compiles the whole update loop (minutes when sharded): shown, not silent.
         first = f"compiling (XLA) and running the first {n} updates"
-        with progress.phase(first) if not updates else contextlib.nullcontext():
+        with progress.phase(first) if not compiled else contextlib.nullcontext():
             carry, metrics = trainer.train_chunk(carry, n)
             metrics = jax.device_get(metrics)
-        chunk_s = time.perf_counter() - t0 if updates else 0.0
+        chunk_s = time.perf_counter() - t0 if compiled else 0.0
+        compiled = True
         updates += n
         rates = metrics.successes / np.maximum(metrics.episodes, 1)
         row = {
@@ -664,6 +712,8 @@ def train(
         }
         curve.append(row)
         _progress(row, budget, trainer.env.task_list, rates, metrics.episodes)
+        if checkpoint is not None:
+            save_checkpoint(checkpoint, carry, updates, curve)
     train_s = time.perf_counter() - start
     t0 = time.perf_counter()
     result = trainer.evaluator(eval_episodes)((carry.params, carry.norm), jax.random.key(config.seed + 1000))
@@ -862,7 +912,14 @@ def main() -> None:
         "from the corner camera; with several seeds, one sub-folder per seed",
     )
     parser.add_argument("--video-size", type=int, default=128, help="video frames' width and height")
+    parser.add_argument(
+        "--checkpoint",
+        default=None,
+        help="stem to save to after every chunk and resume from (STEM-seed<k>.npz/.json; one device)",
+    )
     args = parser.parse_args()
+    if args.checkpoint is not None and args.devices != "1":
+        parser.error("--checkpoint is for one device: leave --devices at 1")
     try:
         build_kernels(task_set(args.set))
     except ValueError as error:
@@ -921,6 +978,7 @@ def main() -> None:
             args.time_learner,
             video,
             args.video_size,
+            None if args.checkpoint is None else f"{args.checkpoint}-seed{seed}",
         )
         run.pop("params")
         print(

@@ -49,6 +49,36 @@ def test_updates_are_finite_and_change_the_policy(trainer):
     assert np.all(np.asarray(carry.norm.returns.var) > 0)
 
 
+def test_checkpoints_round_trip(trainer, tmp_path):
+    carry, _ = trainer.train_chunk(trainer.init(jax.random.key(3)), 2)
+    curve = [{"updates": 2, "loss": 0.5}]
+    ppo.save_checkpoint(tmp_path / "ckpt", carry, 2, curve)
+    restored, updates, restored_curve = ppo.restore_checkpoint(
+        tmp_path / "ckpt", trainer.init(jax.random.key(4))
+    )
+    assert updates == 2 and restored_curve == curve
+    learner = [jax.tree.map(np.asarray, ppo._learner(c)) for c in (carry, restored)]
+    for a, b in zip(*map(jax.tree.leaves, learner), strict=True):
+        np.testing.assert_array_equal(a, b)
+    restored, metrics = trainer.train_chunk(restored, 2)  # the restored learner trains on
+    assert np.isfinite(metrics.loss)
+    other = ppo.Trainer(dataclasses.replace(CONFIG, hidden=(8, 8, 8)))
+    with pytest.raises(ValueError, match="another configuration's"):
+        ppo.restore_checkpoint(tmp_path / "ckpt", other.init(jax.random.key(4)))
+
+
+@pytest.mark.slow
+def test_train_resumes_from_its_checkpoint(tmp_path):
+    """A second run on the same stem goes on from the first's updates, its curve and wall clock."""
+    stem = tmp_path / "run"
+    first = ppo.train(CONFIG, 60.0, log_every=1, max_updates=1, eval_episodes=1, checkpoint=stem)
+    second = ppo.train(CONFIG, 60.0, log_every=1, max_updates=2, eval_episodes=1, checkpoint=stem)
+    assert [r["updates"] for r in second["curve"]] == [1, 2]
+    assert (
+        second["curve"][0] == first["curve"][0] and second["curve"][1]["wall_s"] > first["curve"][0]["wall_s"]
+    )
+
+
 def test_the_trained_policy_runs_through_the_evaluator(trainer):
     carry = trainer.init(jax.random.key(1))
     result = trainer.evaluator(num_episodes=2)((carry.params, carry.norm), jax.random.key(2))

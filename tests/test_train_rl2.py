@@ -144,8 +144,8 @@ def test_checkpoints_round_trip(trainer, tmp_path):
     carry = trainer.init(jax.random.key(3))
     carry, _ = trainer.train_chunk(carry, 2)
     curve = [{"updates": 2, "loss": 0.5}]
-    rl2.save_checkpoint(tmp_path / "ckpt", carry, 2, curve)
-    restored, updates, restored_curve = rl2.restore_checkpoint(
+    rl2.ppo.save_checkpoint(tmp_path / "ckpt", carry, 2, curve)
+    restored, updates, restored_curve = rl2.ppo.restore_checkpoint(
         tmp_path / "ckpt", trainer.init(jax.random.key(4))
     )
     assert updates == 2 and restored_curve == curve
@@ -228,6 +228,9 @@ def test_train_resumes_from_its_checkpoint(tmp_path):
     config = dataclasses.replace(CONFIG, meta_test_train_tasks=True)
     second = rl2.train(config, log_every=1, max_updates=2, checkpoint=stem)
     assert [r["updates"] for r in second["curve"]] == [1, 2]
+    assert (
+        second["curve"][0] == first["curve"][0] and second["curve"][1]["wall_s"] > first["curve"][0]["wall_s"]
+    )
     assert list(second["meta_test_success_per_task"]) == ["push-v3"]
     assert list(second["meta_test_success_train_tasks_per_task"]) == ["reach-v3"]
     assert 0.0 <= second["meta_test_success_train_tasks"] <= 1.0

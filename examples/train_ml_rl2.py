@@ -1,7 +1,7 @@
 """RL² on Meta-World's ML sets (ML10, ML45, ML1), entirely on device: trials, a GRU policy, PPO and
 the meta-test in jitted loops.
 
-    python examples/train_ml_rl2.py --set ML10      # the GPU run (no result recorded yet)
+    python examples/train_ml_rl2.py --set ML10      # the GPU run (docs/training.md: results so far)
     python examples/train_ml_rl2.py --set ML10 --seeds 0 1 2 3 --parallel 4  # four seeds, a GPU each
     python examples/train_ml_rl2.py --set ML1 --task reach-v3 --envs-per-task 2 --max-episode-steps 10 \
         --episodes-per-trial 2 --unroll 10 --minibatches 2 --updates 2 --eval-envs-per-task 2  # CPU smoke run
@@ -446,13 +446,17 @@ class Trainer:
         """The train tasks on their training goals, `eval_envs_per_task` envs each (built on first use)."""
         return self._make_env(self.config.eval_envs_per_task, "train")
 
+    def meta_test_env(self, split: str = "test") -> Any:
+        """The env the meta-test runs on: `test_env`, or with `split="train"` `train_tasks_eval_env`."""
+        if split not in ("test", "train"):
+            raise ValueError(f"split must be 'test' or 'train', got {split!r}")
+        return self.test_env if split == "test" else self.train_tasks_eval_env
+
     def meta_tester(self, split: str = "test") -> Callable[[Params, ppo.Normalizers, Array], MetaTestResult]:
         """A jitted `(params, norm, key) -> MetaTestResult` on the test tasks (module docstring),
         or with `split="train"` the same protocol on the train tasks."""
-        if split not in ("test", "train"):
-            raise ValueError(f"split must be 'test' or 'train', got {split!r}")
         cfg = self.config
-        env = self.test_env if split == "test" else self.train_tasks_eval_env
+        env = self.meta_test_env(split)
         n = env.num_envs
         horizon = cfg.max_episode_steps
 
@@ -533,16 +537,7 @@ def train(
     resumed checkpoint's), saving `checkpoint` after every chunk if given; then meta-test."""
     start = time.perf_counter()
     trainer = Trainer(config)
-    curve: list[dict] = []
-    updates = 0
-    if checkpoint is not None and Path(f"{checkpoint}.npz").exists():
-        meta = json.loads(Path(f"{checkpoint}.json").read_text())
-        # Fresh trials on other goals than the first run's.
-        template = trainer.init(jax.random.fold_in(jax.random.key(config.seed), meta["updates"]))
-        carry, updates, curve = ppo.restore_checkpoint(checkpoint, template)
-        print(f"resumed {checkpoint} at update {updates}", flush=True)
-    else:
-        carry = trainer.init(jax.random.key(config.seed))
+    carry, updates, curve = ppo.start_or_resume(trainer, config.seed, checkpoint)
     # The curve's wall clock runs on across resumed runs.
     start -= curve[-1]["wall_s"] if curve else 0.0
     budget = minutes * 60 + (curve[-1]["wall_s"] if curve else 0.0)
@@ -583,7 +578,7 @@ def train(
         with progress.phase(f"meta-test on the {split} tasks"):
             result = trainer.meta_tester(split)(carry.params, carry.norm, key)
             success = np.asarray(result.success_rate)
-        env = trainer.test_env if split == "test" else trainer.train_tasks_eval_env
+        env = trainer.meta_test_env(split)
         name = "meta_test_success" if split == "test" else "meta_test_success_train_tasks"
         run[f"{name}_per_task"] = dict(zip(env.task_list, success.tolist(), strict=True))
         run[name] = float(success.mean())

@@ -647,6 +647,18 @@ def restore_checkpoint(stem: str | Path, template: Any) -> tuple[Any, int, list[
     return carry, meta["updates"], meta["curve"]
 
 
+def start_or_resume(trainer: Any, seed: int, checkpoint: str | Path | None) -> tuple[Any, int, list[dict]]:
+    """`(carry, updates done, curve)`: a fresh `trainer.init`, or the learner saved at
+    `checkpoint` (if there is one) in a template whose episodes differ from the first run's."""
+    if checkpoint is None or not Path(f"{checkpoint}.npz").exists():
+        return trainer.init(jax.random.key(seed)), 0, []
+    done = json.loads(Path(f"{checkpoint}.json").read_text())["updates"]
+    template = trainer.init(jax.random.fold_in(jax.random.key(seed), done))
+    carry, updates, curve = restore_checkpoint(checkpoint, template)
+    print(f"resumed {checkpoint} at update {updates}", flush=True)
+    return carry, updates, curve
+
+
 def train(
     config: Config,
     minutes: float,
@@ -662,21 +674,12 @@ def train(
     resumed checkpoint's), saving `checkpoint` after every chunk if given; then evaluate, with
     `time_learner` time the learner alone against the last chunk of updates, and with `video` (a
     folder) write one episode of the trained policy on each task as `<task>.mp4`."""
+    if checkpoint is not None and config.devices > 1:
+        raise ValueError("checkpoints are for one device; train with --devices 1")
     start = time.perf_counter()
     with progress.phase("building the envs and the first state"):
         trainer = Trainer(config)
-        curve: list[dict] = []
-        updates = 0
-        if checkpoint is not None and Path(f"{checkpoint}.npz").exists():
-            if config.devices > 1:
-                raise ValueError("checkpoints are for one device; train with --devices 1")
-            done = json.loads(Path(f"{checkpoint}.json").read_text())["updates"]
-            # Fresh episodes, other than the first run's.
-            template = trainer.init(jax.random.fold_in(jax.random.key(config.seed), done))
-            carry, updates, curve = restore_checkpoint(checkpoint, template)
-            print(f"resumed {checkpoint} at update {updates}", flush=True)
-        else:
-            carry = trainer.init(jax.random.key(config.seed))
+        carry, updates, curve = start_or_resume(trainer, config.seed, checkpoint)
     # The curve's wall clock runs on across resumed runs.
     start -= curve[-1]["wall_s"] if curve else 0.0
     budget = minutes * 60 + (curve[-1]["wall_s"] if curve else 0.0)

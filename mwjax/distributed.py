@@ -145,16 +145,22 @@ def launch(command: Sequence[str], processes: int, cpu: bool = False) -> int:
                 break
             time.sleep(0.2)
     finally:
-        for p in procs:
-            if p.poll() is None:
-                p.send_signal(signal.SIGTERM)
-        for p in procs:
-            try:
-                p.wait(timeout=30)
-            except subprocess.TimeoutExpired:
-                p.kill()
-                p.wait()
+        _stop(procs)
     return code or next((p.returncode for p in procs if p.returncode), 0)
+
+
+def _stop(procs: Sequence[subprocess.Popen]) -> list[int]:
+    """Terminate the processes still running (SIGTERM, then SIGKILL after 30 s); their exit codes."""
+    for p in procs:
+        if p.poll() is None:
+            p.send_signal(signal.SIGTERM)
+    for p in procs:
+        try:
+            p.wait(timeout=30)
+        except subprocess.TimeoutExpired:
+            p.kill()
+            p.wait()
+    return [p.returncode for p in procs]
 
 
 def run_independent(
@@ -178,10 +184,9 @@ def run_independent(
         try:
             _schedule(commands, logs, parallel, gpus, pending, running, codes)
         except KeyboardInterrupt:
-            for _, process in running.values():
-                process.terminate()
-            for i, process in running.values():
-                codes[i] = process.wait()
+            stopped = list(running.values())
+            for (i, _), code in zip(stopped, _stop([process for _, process in stopped]), strict=True):
+                codes[i] = code
             for i in pending:
                 codes[i] = -int(signal.SIGTERM)
             stopped = sorted([i + 1 for i, _ in running.values()] + [i + 1 for i in pending])

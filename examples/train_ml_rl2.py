@@ -41,11 +41,8 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import datetime
 import functools
-import json
 import math
-import shlex
 import sys
 import time
 from collections.abc import Callable
@@ -653,7 +650,22 @@ def main() -> None:
     parser.add_argument(
         "--out", default=None, help="result stem (default: benchmarks/results/train/train-...)"
     )
+    parser.add_argument(
+        "--combine",
+        type=Path,
+        nargs="+",
+        metavar="JSON",
+        help="train nothing: write one summary (IQM and CI over seeds, curves) of runs saved by "
+        "earlier invocations of this script, e.g. one seed per device call",
+    )
     args = parser.parse_args()
+    if args.combine:
+        try:
+            runs, device, origin = ppo.combine_runs(args.combine)
+        except (OSError, ValueError, KeyError) as error:
+            parser.error(f"--combine: {error}")
+        write_results(runs, args, device, origin)
+        return
     try:
         ppo.build_kernels(benchmark(args.set, task=args.task))
     except ValueError as error:
@@ -712,36 +724,13 @@ def main() -> None:
     write_results(runs, args, getattr(device, "device_kind", str(device)))
 
 
-def write_results(runs: list[dict], args: argparse.Namespace, device: str) -> str:
-    """The runs' JSON (with the IQM and its CI over seeds) and learning-curve PNG; returns their
-    path without the suffix."""
-    summary: dict[str, Any] = {
-        "device": device,
-        "commit": ppo._commit(),
-        "date": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
-        "command": shlex.join(["python", *sys.argv]),
-        "meta_test_success": [r["meta_test_success"] for r in runs],
-        "runs": runs,
-    }
-    if len(runs) > 1:
-        from mwjax.stats import iqm, stratified_bootstrap_ci
-
-        # Per-test-task success of each seed; IQM over all, CI from resampling seeds per task.
-        scores = np.array([list(r["meta_test_success_per_task"].values()) for r in runs])
-        estimate = stratified_bootstrap_ci(scores)
-        summary["iqm"] = iqm(scores)
-        summary["iqm_ci95"] = [estimate.low, estimate.high]
-        print(
-            f"meta-test IQM {summary['iqm']:.3f} (95% CI {estimate.low:.3f}-{estimate.high:.3f})", flush=True
-        )
-    stem = args.out or str(
-        ppo.RESULTS
-        / f"train-{runs[0]['name']}-rl2-{summary['device']}-{summary['date'][:10]}".replace(" ", "_")
+def write_results(runs: list[dict], args: argparse.Namespace, device: str, origin: dict | None = None) -> str:
+    """The runs' JSON (with the IQM of the per-test-task meta-test success and its CI over
+    seeds) and learning-curve PNG; returns their path without the suffix."""
+    default = f"train-{runs[0]['name']}-rl2-{device}-{ppo._today()}".replace(" ", "_")
+    return ppo.write_summary(
+        runs, device, args.out or str(ppo.RESULTS / default), _plot, "meta_test_success", origin
     )
-    Path(f"{stem}.json").write_text(json.dumps(summary, indent=2))
-    plotted = ppo.save_plot(_plot, runs, Path(f"{stem}.png"))
-    print(f"-> {stem}.json" + (f", {stem}.png" if plotted else ""))
-    return stem
 
 
 if __name__ == "__main__":

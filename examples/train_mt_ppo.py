@@ -920,7 +920,22 @@ def main() -> None:
         default=None,
         help="stem to save to after every chunk and resume from (STEM-seed<k>.npz/.json; one device)",
     )
+    parser.add_argument(
+        "--combine",
+        type=Path,
+        nargs="+",
+        metavar="JSON",
+        help="train nothing: write one summary (IQM and CI over seeds, curves) of runs saved by "
+        "earlier invocations of this script, e.g. one seed per device call",
+    )
     args = parser.parse_args()
+    if args.combine:
+        try:
+            runs, device, origin = combine_runs(args.combine)
+        except (OSError, ValueError, KeyError) as error:
+            parser.error(f"--combine: {error}")
+        write_results(runs, args, device, origin)
+        return
     if args.checkpoint is not None and args.devices != "1":
         parser.error("--checkpoint is for one device: leave --devices at 1")
     try:
@@ -1040,32 +1055,81 @@ def seeds_in_parallel(
     return 1 if failed else 0
 
 
-def write_results(runs: list[dict], args: argparse.Namespace, device: str) -> str:
+def write_results(runs: list[dict], args: argparse.Namespace, device: str, origin: dict | None = None) -> str:
     """The runs' JSON (with the IQM and its CI over seeds) and learning-curve PNG; returns their
-    path without the suffix."""
-    summary = {
+    path without the suffix. `origin`: what `combine_runs` found, for runs of earlier invocations."""
+    default = f"train-{args.set}-ppo-{device}-{_today()}".replace(" ", "_")
+    return write_summary(runs, device, args.out or str(RESULTS / default), _plot, "eval_success", origin)
+
+
+def write_summary(
+    runs: list[dict], device: str, stem: str, plot: Callable, score: str, origin: dict | None = None
+) -> str:
+    """A training script's result, `stem`.json and .png: its runs (one per seed), each run's
+    `score`, and over several seeds the IQM of the per-task `score` with its 95% stratified-
+    bootstrap CI (`mwjax.stats`; tasks are the strata, seeds are resampled). `origin` (from
+    `combine_runs`) records the commit and commands of runs trained by earlier invocations."""
+    summary: dict[str, Any] = {
         "device": device,
-        "commit": _commit(),
+        "commit": origin["commit"] if origin else _commit(),
         "date": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
         "command": shlex.join(["python", *sys.argv]),
-        "eval_success": [r["eval_success"] for r in runs],
+        **({"combined_from": origin["sources"]} if origin else {}),
+        score: [r[score] for r in runs],
         "runs": runs,
     }
     if len(runs) > 1:
         from mwjax.stats import iqm, stratified_bootstrap_ci
 
-        # Per-task success of each seed, IQM over all of them, CI from resampling seeds per task.
-        scores = np.array([list(r["eval_success_per_task"].values()) for r in runs])
+        scores = np.array([list(r[f"{score}_per_task"].values()) for r in runs])
         estimate = stratified_bootstrap_ci(scores)
         summary["iqm"] = iqm(scores)
         summary["iqm_ci95"] = [estimate.low, estimate.high]
-    stem = args.out or str(
-        RESULTS / f"train-{args.set}-ppo-{summary['device']}-{summary['date'][:10]}".replace(" ", "_")
-    )
+        print(
+            f"{len(runs)} seeds: {score} IQM {summary['iqm']:.3f} "
+            f"(95% CI {estimate.low:.3f}-{estimate.high:.3f})",
+            flush=True,
+        )
     Path(f"{stem}.json").write_text(json.dumps(summary, indent=2))
-    plotted = save_plot(_plot, runs, Path(f"{stem}.png"))
+    plotted = save_plot(plot, runs, Path(f"{stem}.png"))
     print(f"-> {stem}.json" + (f", {stem}.png" if plotted else ""))
     return stem
+
+
+def combine_runs(paths: list[Path]) -> tuple[list[dict], str, dict]:
+    """The runs saved by earlier invocations of a training script (`--out` JSONs, e.g. one seed
+    per device call), gathered for one summary: (runs, device, origin). Refuses runs that differ
+    in anything but their seed, a seed twice, and runs from other devices or commits: their IQM
+    would mix recipes."""
+    files = [(path, json.loads(Path(path).read_text())) for path in paths]
+    runs = [run for _, data in files for run in data["runs"]]
+    if not runs:
+        raise ValueError("no runs in " + ", ".join(map(str, paths)))
+
+    def recipe(run: dict) -> dict:
+        return {k: v for k, v in run["config"].items() if k != "seed"}
+
+    for run in runs[1:]:
+        differ = sorted(
+            k
+            for k in recipe(run).keys() | recipe(runs[0]).keys()
+            if recipe(run).get(k) != recipe(runs[0]).get(k)
+        )
+        if differ:
+            raise ValueError(f"the runs differ in {', '.join(differ)}: combine runs of one recipe only")
+    seeds = [run["config"]["seed"] for run in runs]
+    if len(set(seeds)) < len(seeds):
+        raise ValueError(f"a seed appears twice: {seeds}")
+    for key in ("device", "commit"):
+        values = sorted({data[key] for _, data in files})
+        if len(values) > 1:
+            raise ValueError(f"the runs come from different {key}s: {', '.join(values)}")
+    sources = [{"path": str(path), "command": data["command"], "date": data["date"]} for path, data in files]
+    return runs, files[0][1]["device"], {"commit": files[0][1]["commit"], "sources": sources}
+
+
+def _today() -> str:
+    return datetime.datetime.now(datetime.timezone.utc).date().isoformat()
 
 
 if __name__ == "__main__":

@@ -12,6 +12,7 @@ import pytest
 
 from examples import train_mt_ppo as ppo
 from mwjax import distributed, kernels
+from mwjax.stats import iqm
 
 CONFIG = ppo.Config(
     task_set=("reach-v3", "push-v3"),
@@ -178,7 +179,8 @@ def _fake_seed_run(command: list[str], log: Path) -> None:
     rates = {"reach-v3": 0.5 + seed / 4, "push-v3": 0.25}
     row = {"updates": 1, "env_steps": 8, "wall_s": 1.0, "train_success": None, "loss": 0.1}
     row |= {"train_success_per_task": rates, "approx_kl": 0.0}
-    run = {"config": {"seed": seed}, "curve": [row], "eval_success": sum(rates.values()) / 2}
+    config = {"task_set": ("reach-v3", "push-v3"), "reward_version": "v2", "seed": seed}
+    run = {"config": config, "curve": [row], "eval_success": sum(rates.values()) / 2}
     run |= {"eval_success_per_task": rates, "train_s": 1.0, "eval_s": 1.0}
     Path(f"{out}.json").write_text(json.dumps({"device": "test device", "runs": [run]}))
     log.write_text(f"seed {seed} trained\n")
@@ -210,6 +212,57 @@ def test_seeds_in_parallel_make_one_summary(tmp_path, monkeypatch):
     assert summary["device"] == "test device" and summary["eval_success"] == [0.375, 0.5]
     assert "iqm" in summary and len(summary["iqm_ci95"]) == 2
     assert Path(f"{stem}-seed1.log").read_text() == "seed 1 trained\n"
+
+
+def _seed_file(tmp_path: Path, seed: int, commit: str = "abc1234", **config) -> Path:
+    """A one-seed result as an earlier invocation (`--seeds k --out STEM`) writes it."""
+    out = tmp_path / f"seed{seed}"
+    _fake_seed_run(["--seeds", str(seed), "--out", str(out)], tmp_path / f"seed{seed}.log")
+    data = json.loads(Path(f"{out}.json").read_text())
+    data["runs"][0]["config"] |= {"learning_rate": 3e-4} | config
+    data |= {"commit": commit, "command": f"python train_mt_ppo.py --seeds {seed}", "date": "2026-11-26"}
+    Path(f"{out}.json").write_text(json.dumps(data))
+    return Path(f"{out}.json")
+
+
+def test_combine_makes_one_summary_of_seeds_run_separately(tmp_path, monkeypatch):
+    """`--combine`: seeds trained by separate invocations (one per device call) become the same
+    summary one invocation of them all writes, with their commit and commands, training nothing."""
+    monkeypatch.setattr(kernels, "build", lambda tasks: pytest.fail("--combine builds nothing"))
+    files = [_seed_file(tmp_path, seed) for seed in (0, 1, 2)]
+    stem = tmp_path / "all"
+    monkeypatch.setattr(sys, "argv", ["train_mt_ppo.py", "--combine", *map(str, files), "--out", str(stem)])
+    ppo.main()
+    summary = json.loads(Path(f"{stem}.json").read_text())
+    assert [r["config"]["seed"] for r in summary["runs"]] == [0, 1, 2]
+    assert summary["eval_success"] == [0.375, 0.5, 0.625] and summary["commit"] == "abc1234"
+    assert summary["device"] == "test device"
+    assert [s["command"] for s in summary["combined_from"]] == [
+        f"python train_mt_ppo.py --seeds {k}" for k in range(3)
+    ]
+    scores = np.array([[0.5 + seed / 4, 0.25] for seed in range(3)])  # seeds x tasks
+    assert summary["iqm"] == pytest.approx(iqm(scores))
+    assert summary["iqm_ci95"][0] <= summary["iqm"] <= summary["iqm_ci95"][1]
+
+
+@pytest.mark.parametrize(
+    ("other", "message"),
+    [
+        ({"seed": 0, "learning_rate": 1e-3}, "differ in learning_rate"),
+        ({"seed": 0}, "a seed appears twice"),
+        ({"seed": 1, "commit": "def5678"}, "different commits"),
+    ],
+)
+def test_combine_refuses_runs_of_different_recipes(tmp_path, monkeypatch, capsys, other, message):
+    for folder in ("a", "b"):
+        (tmp_path / folder).mkdir()
+    first = _seed_file(tmp_path / "a", 0)
+    seed, commit = other.pop("seed"), other.pop("commit", "abc1234")
+    second = _seed_file(tmp_path / "b", seed, commit, **other)
+    monkeypatch.setattr(sys, "argv", ["train_mt_ppo.py", "--combine", str(first), str(second)])
+    with pytest.raises(SystemExit) as exit:
+        ppo.main()
+    assert exit.value.code == 2 and message in capsys.readouterr().err
 
 
 def test_seeds_stopped_by_a_time_limit_still_leave_the_finished_ones_summary(tmp_path, monkeypatch):

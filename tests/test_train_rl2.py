@@ -262,3 +262,21 @@ def test_seeds_in_parallel_make_one_summary(tmp_path, monkeypatch):
     summary = json.loads(Path(f"{stem}.json").read_text())
     assert summary["meta_test_success"] == [0.5, 0.75] and "iqm_ci95" in summary
     assert sorted(p.name for p in tmp_path.iterdir()) == ["run-seed0.log", "run-seed1.log", "run.json"]
+
+
+def test_combine_summarizes_seeds_trained_by_separate_invocations(tmp_path, monkeypatch):
+    """`--combine`: the RL² example's seeds from separate device calls, one summary."""
+    files = []
+    for seed in (0, 1):
+        run = {"name": "ML10", "curve": [], "meta_test_success": 0.25 * seed}
+        run |= {"meta_test_success_per_task": {"push-v3": 0.25 * seed}, "config": {"seed": seed}}
+        data = {"device": "test device", "commit": "abc1234", "command": f"seed {seed}", "date": "today"}
+        files.append(tmp_path / f"seed{seed}.json")
+        files[-1].write_text(json.dumps(data | {"runs": [run]}))
+    monkeypatch.setattr(rl2.ppo, "save_plot", lambda plot, runs, path: False)
+    stem = tmp_path / "all"
+    monkeypatch.setattr(sys, "argv", ["train_ml_rl2.py", "--combine", *map(str, files), "--out", str(stem)])
+    rl2.main()
+    summary = json.loads(Path(f"{stem}.json").read_text())
+    assert summary["meta_test_success"] == [0.0, 0.25] and summary["commit"] == "abc1234"
+    assert [s["command"] for s in summary["combined_from"]] == ["seed 0", "seed 1"] and "iqm_ci95" in summary

@@ -94,6 +94,10 @@ class Config:
     init_log_std: float = -0.5
     # Start the envs at random points of their trials (`Trainer.stagger`); otherwise in lockstep.
     staggered_starts: bool = True
+    # Normalize the advantages per train task (as the PPO example does) instead of over all envs,
+    # so that no task's gradient drowns out another's. The learner knows each env's task; the
+    # policy still does not (its inputs are the same either way).
+    per_task_advantages: bool = True
     reward_version: str = "v2"
     seed: int = 0
     # The meta-test (the paper: 10 goals per test task, 10 adaptation and 3 evaluation episodes).
@@ -362,6 +366,14 @@ class Trainer:
         )
         return advantages, advantages + batch.value
 
+    def _normalized(self, advantages: Array) -> Array:
+        """`(unroll, envs)` advantages to mean 0 and std 1, per train task (envs lie task by
+        task) with `per_task_advantages`, else over all."""
+        axes = (0, 2) if self.config.per_task_advantages else (0, 1, 2)
+        a = advantages.reshape(advantages.shape[0], self.n_tasks, -1)
+        a = (a - a.mean(axis=axes, keepdims=True)) / (a.std(axis=axes, keepdims=True) + 1e-8)
+        return a.reshape(advantages.shape)
+
     def _loss(
         self, params: Params, h0: Array, mb: Transition, advantages: Array, targets: Array
     ) -> tuple[Array, Array]:
@@ -390,7 +402,7 @@ class Trainer:
         running, returns = jax.lax.scan(accumulate, carry.running_return, (batch.reward, batch.trial_end))
         norm = carry.norm._replace(returns=carry.norm.returns.merge(returns[..., None], (0, 1)))
         advantages, targets = self._advantages(carry, batch, batch.reward / jnp.sqrt(norm.returns.var + 1e-8))
-        advantages = (advantages - advantages.mean()) / (advantages.std() + 1e-8)
+        advantages = self._normalized(advantages)
         norm = norm._replace(obs=norm.obs.merge(batch.obs, (0, 1)))
 
         def epoch(c: tuple, key: Array) -> tuple[tuple, tuple[Array, Array]]:
@@ -634,6 +646,12 @@ def main() -> None:
         default=d.staggered_starts,
         help="start each env at a random point of its first trial",
     )
+    parser.add_argument(
+        "--per-task-advantages",
+        action=argparse.BooleanOptionalAction,
+        default=d.per_task_advantages,
+        help="normalize advantages per train task (the learner's knowledge; the policy sees no task)",
+    )
     parser.add_argument("--seeds", type=int, nargs="+", default=[0])
     parser.add_argument(
         "--parallel",
@@ -698,6 +716,7 @@ def main() -> None:
             entropy_coef=args.entropy_coef,
             hidden=args.hidden,
             staggered_starts=args.staggered_starts,
+            per_task_advantages=args.per_task_advantages,
             reward_version=args.reward_version,
             seed=seed,
             adaptation_episodes=args.adaptation_episodes,

@@ -6,6 +6,7 @@ starts have their own test) so that every two updates end an episode and every f
 import dataclasses
 import json
 import sys
+import types
 from pathlib import Path
 from typing import NamedTuple
 
@@ -280,3 +281,20 @@ def test_combine_summarizes_seeds_trained_by_separate_invocations(tmp_path, monk
     summary = json.loads(Path(f"{stem}.json").read_text())
     assert summary["meta_test_success"] == [0.0, 0.25] and summary["commit"] == "abc1234"
     assert [s["command"] for s in summary["combined_from"]] == ["seed 0", "seed 1"] and "iqm_ci95" in summary
+
+
+@pytest.mark.parametrize("per_task", [True, False])
+def test_advantages_are_normalized_per_train_task(per_task):
+    """Two train tasks laid out task by task, one with 100x the other's advantages: per task,
+    each gets mean 0 and std 1; over all envs, the small task's advantages shrink to ~0."""
+    config = dataclasses.replace(CONFIG, per_task_advantages=per_task)
+    learner = types.SimpleNamespace(config=config, n_tasks=2)
+    raw = np.random.default_rng(0).normal(size=(3, 2, 4)) * np.array([1.0, 100.0])[None, :, None] + 5.0
+    out = np.asarray(rl2.Trainer._normalized(learner, jnp.asarray(raw.reshape(3, 8), jnp.float32)))
+    by_task = out.reshape(3, 2, 4)
+    if per_task:
+        np.testing.assert_allclose(by_task.mean(axis=(0, 2)), 0.0, atol=1e-5)
+        np.testing.assert_allclose(by_task.std(axis=(0, 2)), 1.0, atol=1e-4)
+    else:
+        np.testing.assert_allclose([out.mean(), out.std()], [0.0, 1.0], atol=1e-4)
+        assert by_task[:, 0].std() < 0.05

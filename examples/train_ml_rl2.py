@@ -668,21 +668,9 @@ def main() -> None:
     parser.add_argument(
         "--out", default=None, help="result stem (default: benchmarks/results/train/train-...)"
     )
-    parser.add_argument(
-        "--combine",
-        type=Path,
-        nargs="+",
-        metavar="JSON",
-        help="train nothing: write one summary (IQM and CI over seeds, curves) of runs saved by "
-        "earlier invocations of this script, e.g. one seed per device call",
-    )
+    ppo.add_combine_argument(parser)
     args = parser.parse_args()
-    if args.combine:
-        try:
-            runs, device, origin = ppo.combine_runs(args.combine)
-        except (OSError, ValueError, KeyError) as error:
-            parser.error(f"--combine: {error}")
-        write_results(runs, args, device, origin)
+    if ppo.combined(parser, args, lambda runs, device, origin: write_results(runs, args, device, origin)):
         return
     try:
         ppo.build_kernels(benchmark(args.set, task=args.task))

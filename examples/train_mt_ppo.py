@@ -920,21 +920,9 @@ def main() -> None:
         default=None,
         help="stem to save to after every chunk and resume from (STEM-seed<k>.npz/.json; one device)",
     )
-    parser.add_argument(
-        "--combine",
-        type=Path,
-        nargs="+",
-        metavar="JSON",
-        help="train nothing: write one summary (IQM and CI over seeds, curves) of runs saved by "
-        "earlier invocations of this script, e.g. one seed per device call",
-    )
+    add_combine_argument(parser)
     args = parser.parse_args()
-    if args.combine:
-        try:
-            runs, device, origin = combine_runs(args.combine)
-        except (OSError, ValueError, KeyError) as error:
-            parser.error(f"--combine: {error}")
-        write_results(runs, args, device, origin)
+    if combined(parser, args, lambda runs, device, origin: write_results(runs, args, device, origin)):
         return
     if args.checkpoint is not None and args.devices != "1":
         parser.error("--checkpoint is for one device: leave --devices at 1")
@@ -1126,6 +1114,34 @@ def combine_runs(paths: list[Path]) -> tuple[list[dict], str, dict]:
             raise ValueError(f"the runs come from different {key}s: {', '.join(values)}")
     sources = [{"path": str(path), "command": data["command"], "date": data["date"]} for path, data in files]
     return runs, files[0][1]["device"], {"commit": files[0][1]["commit"], "sources": sources}
+
+
+def add_combine_argument(parser: argparse.ArgumentParser) -> None:
+    """A training script's `--combine JSON...` (see `combined`)."""
+    parser.add_argument(
+        "--combine",
+        type=Path,
+        nargs="+",
+        metavar="JSON",
+        help="train nothing: write one summary (IQM and CI over seeds, curves) of runs saved by "
+        "earlier invocations of this script, e.g. one seed per device call",
+    )
+
+
+def combined(
+    parser: argparse.ArgumentParser, args: argparse.Namespace, write: Callable[[list[dict], str, dict], str]
+) -> bool:
+    """With `--combine`: `write(runs, device, origin)` for the runs of the given JSONs
+    (`combine_runs`) and True, the script then trains nothing; a mismatch ends in the usage error.
+    Without it, False."""
+    if not args.combine:
+        return False
+    try:
+        runs, device, origin = combine_runs(args.combine)
+    except (OSError, ValueError, KeyError) as error:
+        parser.error(f"--combine: {error}")
+    write(runs, device, origin)
+    return True
 
 
 def _today() -> str:

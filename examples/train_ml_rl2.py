@@ -550,35 +550,19 @@ def train(
     # The curve's wall clock runs on across resumed runs.
     start -= curve[-1]["wall_s"] if curve else 0.0
     budget = minutes * 60 + (curve[-1]["wall_s"] if curve else 0.0)
-    chunk_s = 0.0
     print(
         f"{trainer.env.benchmark.name}: {trainer.env.num_envs} envs, {trainer.steps_per_update:,} env steps "
         f"per update, trials of {trainer.trial_length} steps",
         flush=True,
     )
-    while max_updates is None or updates < max_updates:
-        n = log_every if max_updates is None else min(log_every, max_updates - updates)
-        if max_updates is None and time.perf_counter() - start + chunk_s > budget:
-            break
-        t0 = time.perf_counter()
-        carry, metrics = trainer.train_chunk(carry, n)
-        metrics = jax.device_get(metrics)
-        chunk_s = time.perf_counter() - t0
-        updates += n
-        rates = metrics.successes / np.maximum(metrics.episodes, 1)
-        row = {
-            "updates": updates,
-            "env_steps": updates * trainer.steps_per_update,
-            "wall_s": time.perf_counter() - start,
-            "train_success": float(rates.mean()) if metrics.episodes.all() else None,
-            "train_success_per_task": dict(zip(trainer.env.task_list, rates.tolist(), strict=True)),
-            "loss": float(metrics.loss),
-            "approx_kl": float(metrics.approx_kl),
-        }
+    loop = ppo._Loop(carry, updates)
+    for metrics in ppo._chunks(trainer.train_chunk, loop, start, budget, log_every, max_updates):
+        row = ppo._row(metrics, loop.updates, trainer, time.perf_counter() - start)
         curve.append(row)
-        ppo._progress(row, budget, trainer.env.task_list, rates, metrics.episodes)
+        ppo._progress(row, budget, trainer.env.task_list, metrics)
         if checkpoint is not None:
-            ppo.save_checkpoint(checkpoint, carry, updates, curve)
+            ppo.save_checkpoint(checkpoint, loop.carry, loop.updates, curve)
+    carry = loop.carry
     train_s = time.perf_counter() - start
     t0 = time.perf_counter()
     run = {"config": dataclasses.asdict(config), "curve": curve, "train_s": train_s}

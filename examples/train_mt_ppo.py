@@ -43,7 +43,7 @@ import subprocess
 import sys
 import tempfile
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any, Literal, NamedTuple
 
@@ -55,6 +55,7 @@ from jax.sharding import PartitionSpec as P
 
 import mwjax
 from mwjax import distributed, progress, rendering
+from mwjax.batching import cond_any
 from mwjax.benchmarks import parse_tasks
 from mwjax.evaluation import evaluator
 from mwjax.observation import OBS_SIZE
@@ -253,6 +254,12 @@ class Trainer:
         self._init_rest = jax.jit(self._init_rest_of_carry)
         chunk = self._train_chunk if self.axis is None else self._sharded_train_chunk
         self.train_chunk = jax.jit(chunk, static_argnums=1, donate_argnums=0)
+        # Several seeds' carries stacked on a leading axis, trained in one program (`train_seeds`).
+        self.train_chunks = jax.jit(
+            lambda carries, n: jax.vmap(lambda c: self._train_chunk(c, n))(carries),
+            static_argnums=1,
+            donate_argnums=0,
+        )
 
     # -- data parallel: collectives over the devices (nothing without them) --------------------
 
@@ -394,7 +401,8 @@ class Trainer:
                 jnp.where(truncated, final_value, 0.0),
             )
             if self.config.staggered_starts:
-                env_state = jax.lax.cond(jnp.any(cut), lambda s: env.restart(s, cut), lambda s: s, env_state)
+                # `cond_any`, not `lax.cond`: it stays one branch under `train_seeds`' outer vmap.
+                env_state = cond_any(cut, env.restart, lambda s, _: s, env_state)
             # Training success counts full-length episodes only; cut ones had less time.
             ended = full_length & success
             next_c = (env_state, success & ~truncated, jnp.where(truncated, -1, first_cut))
@@ -569,8 +577,10 @@ class Trainer:
         jax.block_until_ready(compiled(carry, batch))
         return time.perf_counter() - t0
 
-    def evaluator(self, num_episodes: int = 50) -> Any:
-        return jax.jit(evaluator(self.env, self.policy, num_episodes, one_hot=True))
+    def evaluator(self, num_episodes: int = 50, stacked: bool = False) -> Any:
+        """`(params_and_norm, key) -> EvalResult`; `stacked`: of seeds stacked on a leading axis."""
+        run = evaluator(self.env, self.policy, num_episodes, one_hot=True)
+        return jax.jit(jax.vmap(run) if stacked else run)
 
     def policy_frames(
         self,
@@ -683,40 +693,18 @@ def train(
     # The curve's wall clock runs on across resumed runs.
     start -= curve[-1]["wall_s"] if curve else 0.0
     budget = minutes * 60 + (curve[-1]["wall_s"] if curve else 0.0)
-    chunk_s = 0.0
-    compiled = False
     print(
         f"{config.task_set}: {trainer.env.num_envs} envs, {trainer.steps_per_update:,} env steps per update",
         flush=True,
     )
-    while max_updates is None or updates < max_updates:
-        n = log_every if max_updates is None else min(log_every, max_updates - updates)
-        elapsed = time.perf_counter() - start
-        if max_updates is None and elapsed + chunk_s > budget:
-            break
-        t0 = time.perf_counter()
-        # The first chunk compiles the whole update loop (minutes when sharded): shown, not silent.
-        first = f"compiling (XLA) and running the first {n} updates"
-        with progress.phase(first) if not compiled else contextlib.nullcontext():
-            carry, metrics = trainer.train_chunk(carry, n)
-            metrics = jax.device_get(metrics)
-        chunk_s = time.perf_counter() - t0 if compiled else 0.0
-        compiled = True
-        updates += n
-        rates = metrics.successes / np.maximum(metrics.episodes, 1)
-        row = {
-            "updates": updates,
-            "env_steps": updates * trainer.steps_per_update,
-            "wall_s": time.perf_counter() - start,
-            "train_success": float(rates.mean()) if metrics.episodes.all() else None,
-            "train_success_per_task": dict(zip(trainer.env.task_list, rates.tolist(), strict=True)),
-            "loss": float(metrics.loss),
-            "approx_kl": float(metrics.approx_kl),
-        }
+    loop = _Loop(carry, updates)
+    for metrics in _chunks(trainer.train_chunk, loop, start, budget, log_every, max_updates):
+        row = _row(metrics, loop.updates, trainer, time.perf_counter() - start)
         curve.append(row)
-        _progress(row, budget, trainer.env.task_list, rates, metrics.episodes)
+        _progress(row, budget, trainer.env.task_list, metrics)
         if checkpoint is not None:
-            save_checkpoint(checkpoint, carry, updates, curve)
+            save_checkpoint(checkpoint, loop.carry, loop.updates, curve)
+    carry, n, chunk_s = loop.carry, loop.n, loop.chunk_s
     train_s = time.perf_counter() - start
     t0 = time.perf_counter()
     result = trainer.evaluator(eval_episodes)((carry.params, carry.norm), jax.random.key(config.seed + 1000))
@@ -751,9 +739,114 @@ def train(
     }
 
 
-def _progress(
-    row: dict, budget: float, tasks: tuple[str, ...], rates: np.ndarray, episodes: np.ndarray
-) -> None:
+def train_seeds(
+    config: Config,
+    seeds: list[int],
+    minutes: float,
+    log_every: int,
+    max_updates: int | None = None,
+    eval_episodes: int = 50,
+) -> list[dict]:
+    """Train every seed of `seeds` at once in one program on one device (`--vmap-seeds`): their
+    carries stacked on a leading axis, each update `jax.vmap`ped over them, so one device call
+    gives a distribution. The seeds share one env, so its goal variants come from `config.seed`;
+    each seed has its own initial parameters, resets, exploration and minibatches. One run
+    (`train`'s result) per seed; wall clock, training and evaluation time are the program's."""
+    if config.devices > 1:
+        raise ValueError("seeds in one program run on one device; train with --devices 1")
+    start = time.perf_counter()
+    with progress.phase(f"building the envs and {len(seeds)} seeds' first states"):
+        trainer = Trainer(config)
+        carries = [trainer.init(jax.random.key(seed)) for seed in seeds]
+        loop = _Loop(jax.tree.map(lambda *x: jnp.stack(x), *carries), 0)
+        del carries
+    budget = minutes * 60
+    print(
+        f"{config.task_set}: {len(seeds)} seeds x {trainer.env.num_envs} envs, "
+        f"{len(seeds) * trainer.steps_per_update:,} env steps per update",
+        flush=True,
+    )
+    curves: list[list[dict]] = [[] for _ in seeds]
+    for metrics in _chunks(trainer.train_chunks, loop, start, budget, log_every, max_updates):
+        wall_s = time.perf_counter() - start
+        for i, seed in enumerate(seeds):
+            own = jax.tree.map(lambda x, i=i: x[i], metrics)
+            curves[i].append(_row(own, loop.updates, trainer, wall_s))
+            _progress(curves[i][-1], budget, trainer.env.task_list, own, f"seed {seed} ")
+    train_s = time.perf_counter() - start
+    t0 = time.perf_counter()
+    carry = loop.carry
+    keys = jnp.stack([jax.random.key(seed + 1000) for seed in seeds])
+    success = np.asarray(
+        trainer.evaluator(eval_episodes, stacked=True)((carry.params, carry.norm), keys).success_rate
+    )
+    eval_s = time.perf_counter() - t0
+    return [
+        {
+            "config": dataclasses.asdict(dataclasses.replace(config, seed=seed)),
+            "one_program": {"seeds": list(seeds), "env_seed": config.seed},
+            "curve": curve,
+            "train_s": train_s,
+            "eval_s": eval_s,
+            "eval_success_per_task": dict(zip(trainer.env.task_list, rates.tolist(), strict=True)),
+            "eval_success": float(rates.mean()),
+            "params": jax.tree.map(lambda x, i=i: x[i], carry.params),
+        }
+        for i, (seed, curve, rates) in enumerate(zip(seeds, curves, success, strict=True))
+    ]
+
+
+@dataclasses.dataclass
+class _Loop:
+    """Where a run's chunk loop stands: the carry, the updates so far, and the last chunk's
+    updates and seconds (0 for the first, which compiles)."""
+
+    carry: Any
+    updates: int
+    n: int = 0
+    chunk_s: float = 0.0
+
+
+def _chunks(
+    train_chunk: Callable, loop: _Loop, start: float, budget: float, log_every: int, max_updates: int | None
+) -> Iterator[Any]:
+    """Chunks of `log_every` updates, advancing `loop`, until `max_updates` in all, or else until
+    the next chunk would pass `budget` seconds after `start` (timed by the last one). Yields each
+    chunk's metrics, on the host."""
+    compiled = False
+    while max_updates is None or loop.updates < max_updates:
+        n = log_every if max_updates is None else min(log_every, max_updates - loop.updates)
+        if max_updates is None and time.perf_counter() - start + loop.chunk_s > budget:
+            return
+        t0 = time.perf_counter()
+        # The first chunk compiles the whole update loop (minutes when sharded): shown, not silent.
+        first = f"compiling (XLA) and running the first {n} updates"
+        with progress.phase(first) if not compiled else contextlib.nullcontext():
+            loop.carry, metrics = train_chunk(loop.carry, n)
+            metrics = jax.device_get(metrics)
+        loop.chunk_s = time.perf_counter() - t0 if compiled else 0.0
+        loop.n, loop.updates = n, loop.updates + n
+        compiled = True
+        yield metrics
+
+
+def _row(metrics: Any, updates: int, trainer: Any, wall_s: float) -> dict:
+    """One point of a seed's learning curve from its chunk's metrics."""
+    rates = metrics.successes / np.maximum(metrics.episodes, 1)
+    return {
+        "updates": updates,
+        "env_steps": updates * trainer.steps_per_update,
+        "wall_s": wall_s,
+        "train_success": float(rates.mean()) if metrics.episodes.all() else None,
+        "train_success_per_task": dict(zip(trainer.env.task_list, rates.tolist(), strict=True)),
+        "loss": float(metrics.loss),
+        "approx_kl": float(metrics.approx_kl),
+    }
+
+
+def _progress(row: dict, budget: float, tasks: tuple[str, ...], metrics: Any, label: str = "") -> None:
+    rates = metrics.successes / np.maximum(metrics.episodes, 1)
+    episodes = metrics.episodes
     done = min(row["wall_s"] / budget, 1.0)
     bar = "#" * int(30 * done) + "." * (30 - int(30 * done))
     mean = "  n/a" if row["train_success"] is None else f"{row['train_success']:.3f}"
@@ -762,7 +855,7 @@ def _progress(
         for t, r, e in zip(tasks, rates, episodes, strict=True)
     )
     print(
-        f"[{bar}] {row['wall_s']:6.0f}s  {row['env_steps'] / 1e6:8.1f}M steps  "
+        f"{label}[{bar}] {row['wall_s']:6.0f}s  {row['env_steps'] / 1e6:8.1f}M steps  "
         f"update {row['updates']}  loss {row['loss']:.3f}  success {mean} | {per_task}",
         flush=True,
     )
@@ -891,6 +984,12 @@ def main() -> None:
         default=1,
         help="seeds trained at once, each in its own process on a GPU of its own (1: one after another)",
     )
+    parser.add_argument(
+        "--vmap-seeds",
+        action="store_true",
+        help="train all --seeds at once in one program on one device (jax.vmap over seeds; one env, "
+        "so one set of goal variants)",
+    )
     parser.add_argument("--minutes", type=float, default=8.4, help="wall clock per seed, compile included")
     parser.add_argument("--updates", type=int, default=None, help="stop after this many updates instead")
     parser.add_argument("--log-every", type=int, default=10, help="updates per jitted chunk")
@@ -926,6 +1025,22 @@ def main() -> None:
         return
     if args.checkpoint is not None and args.devices != "1":
         parser.error("--checkpoint is for one device: leave --devices at 1")
+    if args.vmap_seeds:
+        clash = [
+            flag
+            for flag, on in [
+                ("--parallel", args.parallel > 1),
+                ("--devices", args.devices != "1"),
+                ("--checkpoint", args.checkpoint is not None),
+                ("--video", args.video is not None),
+                ("--time-learner", args.time_learner),
+            ]
+            if on
+        ]
+        if clash:
+            parser.error(
+                f"--vmap-seeds trains every seed in one program on one device: drop {', '.join(clash)}"
+            )
     try:
         build_kernels(task_set(args.set))
     except ValueError as error:
@@ -955,9 +1070,8 @@ def main() -> None:
         sys.exit(code)
     distributed.initialize()  # one process per GPU, when started by `python -m mwjax.distributed`
 
-    runs = []
-    for seed in args.seeds:
-        config = Config(
+    def config_of(seed: int) -> Config:
+        return Config(
             task_set=task_set(args.set),
             envs_per_task=args.envs_per_task,
             unroll=args.unroll,
@@ -972,6 +1086,29 @@ def main() -> None:
             seed=seed,
             devices=jax.device_count() if args.devices == "all" else int(args.devices),
         )
+
+    if args.vmap_seeds:
+        runs = train_seeds(
+            config_of(args.seeds[0]),
+            args.seeds,
+            args.minutes,
+            args.log_every,
+            args.updates,
+            args.eval_episodes,
+        )
+        for run in runs:
+            run.pop("params")
+            print(
+                f"seed {run['config']['seed']}: evaluation success {run['eval_success']:.3f} "
+                f"{run['eval_success_per_task']}",
+                flush=True,
+            )
+        device = jax.devices()[0]
+        write_results(runs, args, getattr(device, "device_kind", str(device)))
+        return
+    runs = []
+    for seed in args.seeds:
+        config = config_of(seed)
         video = None
         if args.video is not None:
             video = args.video / f"seed{seed}" if len(args.seeds) > 1 else args.video

@@ -285,3 +285,30 @@ def test_seeds_stopped_by_a_time_limit_still_leave_the_finished_ones_summary(tmp
     assert [r["config"]["seed"] for r in summary["runs"]] == [0]
     assert Path(f"{stem}-seed1.log").read_text() == "seed 1 training\n"
     assert not Path(f"{stem}-seed2.log").exists()
+
+
+def test_seeds_in_one_program_train_as_each_seed_alone(trainer):
+    """`train_seeds` (`--vmap-seeds`): two seeds stacked and vmapped through one program end
+    where each seed's own run on the same env ends, up to float rounding of batched matmuls,
+    which Adam can turn into up to a step (lr 3e-4) per update for weights of near-zero gradient."""
+    runs = ppo.train_seeds(CONFIG, [0, 3], minutes=60, log_every=2, max_updates=2, eval_episodes=1)
+    assert [r["config"]["seed"] for r in runs] == [0, 3]
+    assert all(r["one_program"] == {"seeds": [0, 3], "env_seed": CONFIG.seed} for r in runs)
+    for run, seed in zip(runs, (0, 3), strict=True):
+        alone, metrics = trainer.train_chunk(trainer.init(jax.random.key(seed)), 2)
+        for ours, theirs in zip(jax.tree.leaves(run["params"]), jax.tree.leaves(alone.params), strict=True):
+            np.testing.assert_allclose(ours, theirs, rtol=1e-3, atol=2 * 3e-4, err_msg=f"seed {seed}")
+        assert [r["updates"] for r in run["curve"]] == [2]
+        assert run["curve"][0]["loss"] == pytest.approx(float(metrics.loss), rel=1e-3, abs=1e-5)
+        assert set(run["eval_success_per_task"]) == set(CONFIG.task_set)
+    first, second = (jax.tree.leaves(r["params"]) for r in runs)
+    assert any(not np.allclose(a, b) for a, b in zip(first, second, strict=True))  # two seeds, not one
+
+
+def test_seeds_in_one_program_refuse_per_seed_options(monkeypatch, capsys):
+    argv = ["train_mt_ppo.py", "--seeds", "0", "1", "--vmap-seeds", "--checkpoint", "c", "--parallel", "2"]
+    monkeypatch.setattr(sys, "argv", argv)
+    monkeypatch.setattr(kernels, "build", lambda tasks: None)
+    with pytest.raises(SystemExit) as exit:
+        ppo.main()
+    assert exit.value.code == 2 and "drop --parallel, --checkpoint" in capsys.readouterr().err

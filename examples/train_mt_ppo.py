@@ -990,7 +990,12 @@ def main() -> None:
         help="train all --seeds at once in one program on one device (jax.vmap over seeds; one env, "
         "so one set of goal variants)",
     )
-    parser.add_argument("--minutes", type=float, default=8.4, help="wall clock per seed, compile included")
+    parser.add_argument(
+        "--minutes",
+        type=float,
+        default=8.4,
+        help="wall clock per seed (--vmap-seeds: for all), compile included",
+    )
     parser.add_argument("--updates", type=int, default=None, help="stop after this many updates instead")
     parser.add_argument("--log-every", type=int, default=10, help="updates per jitted chunk")
     parser.add_argument("--eval-episodes", type=int, default=50, help="per task, one per goal variant")

@@ -559,7 +559,7 @@ def train(
     for metrics in ppo._chunks(trainer.train_chunk, loop, start, budget, log_every, max_updates):
         row = ppo._row(metrics, loop.updates, trainer, time.perf_counter() - start)
         curve.append(row)
-        ppo._progress(row, budget, trainer.env.task_list, metrics)
+        ppo._progress(row, budget, metrics.episodes)
         if checkpoint is not None:
             ppo.save_checkpoint(checkpoint, loop.carry, loop.updates, curve)
     carry = loop.carry

@@ -701,7 +701,7 @@ def train(
     for metrics in _chunks(trainer.train_chunk, loop, start, budget, log_every, max_updates):
         row = _row(metrics, loop.updates, trainer, time.perf_counter() - start)
         curve.append(row)
-        _progress(row, budget, trainer.env.task_list, metrics)
+        _progress(row, budget, metrics.episodes)
         if checkpoint is not None:
             save_checkpoint(checkpoint, loop.carry, loop.updates, curve)
     carry, n, chunk_s = loop.carry, loop.n, loop.chunk_s
@@ -772,7 +772,7 @@ def train_seeds(
         for i, seed in enumerate(seeds):
             own = jax.tree.map(lambda x, i=i: x[i], metrics)
             curves[i].append(_row(own, loop.updates, trainer, wall_s))
-            _progress(curves[i][-1], budget, trainer.env.task_list, own, f"seed {seed} ")
+            _progress(curves[i][-1], budget, own.episodes, f"seed {seed} ")
     train_s = time.perf_counter() - start
     t0 = time.perf_counter()
     carry = loop.carry
@@ -844,15 +844,14 @@ def _row(metrics: Any, updates: int, trainer: Any, wall_s: float) -> dict:
     }
 
 
-def _progress(row: dict, budget: float, tasks: tuple[str, ...], metrics: Any, label: str = "") -> None:
-    rates = metrics.successes / np.maximum(metrics.episodes, 1)
-    episodes = metrics.episodes
+def _progress(row: dict, budget: float, episodes: np.ndarray, label: str = "") -> None:
+    """A curve row (`_row`) as one progress line; a task with no finished `episodes` shows n/a."""
     done = min(row["wall_s"] / budget, 1.0)
     bar = "#" * int(30 * done) + "." * (30 - int(30 * done))
     mean = "  n/a" if row["train_success"] is None else f"{row['train_success']:.3f}"
     per_task = " ".join(
         f"{t.removesuffix('-v3')}={r:.2f}" if e else f"{t.removesuffix('-v3')}=n/a"
-        for t, r, e in zip(tasks, rates, episodes, strict=True)
+        for (t, r), e in zip(row["train_success_per_task"].items(), episodes, strict=True)
     )
     print(
         f"{label}[{bar}] {row['wall_s']:6.0f}s  {row['env_steps'] / 1e6:8.1f}M steps  "
@@ -1239,12 +1238,10 @@ def combine_runs(paths: list[Path]) -> tuple[list[dict], str, dict]:
     def recipe(run: dict) -> dict:
         return {k: v for k, v in run["config"].items() if k != "seed"}
 
+    first = recipe(runs[0])
     for run in runs[1:]:
-        differ = sorted(
-            k
-            for k in recipe(run).keys() | recipe(runs[0]).keys()
-            if recipe(run).get(k) != recipe(runs[0]).get(k)
-        )
+        own = recipe(run)
+        differ = sorted(k for k in own.keys() | first.keys() if own.get(k) != first.get(k))
         if differ:
             raise ValueError(f"the runs differ in {', '.join(differ)}: combine runs of one recipe only")
     seeds = [run["config"]["seed"] for run in runs]

@@ -189,8 +189,8 @@ def run_independent(
                 codes[i] = code
             for i in pending:
                 codes[i] = -int(signal.SIGTERM)
-            stopped = sorted([i + 1 for i, _ in running.values()] + [i + 1 for i in pending])
-            print(f"interrupted: runs {stopped} stopped or never started", flush=True)
+            numbers = sorted([i + 1 for i, _ in stopped] + [i + 1 for i in pending])
+            print(f"interrupted: runs {numbers} stopped or never started", flush=True)
     return codes
 
 

@@ -1225,11 +1225,12 @@ def write_summary(
     return stem
 
 
-def combine_runs(paths: list[Path]) -> tuple[list[dict], str, dict]:
+def combine_runs(paths: list[Path], across_commits: bool = False) -> tuple[list[dict], str, dict]:
     """The runs saved by earlier invocations of a training script (`--out` JSONs, e.g. one seed
     per device call), gathered for one summary: (runs, device, origin). Refuses runs that differ
-    in anything but their seed, a seed twice, and runs from other devices or commits: their IQM
-    would mix recipes."""
+    in anything but their seed, a seed twice, and runs from other devices or, unless
+    `across_commits` (for commits known not to change training), other commits: their IQM would
+    mix recipes. The origin's commit is then every commit, joined by "+"."""
     files = [(path, json.loads(Path(path).read_text())) for path in paths]
     runs = [run for _, data in files for run in data["runs"]]
     if not runs:
@@ -1247,12 +1248,17 @@ def combine_runs(paths: list[Path]) -> tuple[list[dict], str, dict]:
     seeds = [run["config"]["seed"] for run in runs]
     if len(set(seeds)) < len(seeds):
         raise ValueError(f"a seed appears twice: {seeds}")
-    for key in ("device", "commit"):
+    for key in ("device", "commit") if not across_commits else ("device",):
         values = sorted({data[key] for _, data in files})
         if len(values) > 1:
-            raise ValueError(f"the runs come from different {key}s: {', '.join(values)}")
-    sources = [{"path": str(path), "command": data["command"], "date": data["date"]} for path, data in files]
-    return runs, files[0][1]["device"], {"commit": files[0][1]["commit"], "sources": sources}
+            hint = " (--across-commits if they train alike)" if key == "commit" else ""
+            raise ValueError(f"the runs come from different {key}s: {', '.join(values)}{hint}")
+    sources = [
+        {"path": str(path), "command": data["command"], "date": data["date"], "commit": data["commit"]}
+        for path, data in files
+    ]
+    commits = "+".join(dict.fromkeys(data["commit"] for _, data in files))
+    return runs, files[0][1]["device"], {"commit": commits, "sources": sources}
 
 
 def add_combine_argument(parser: argparse.ArgumentParser) -> None:
@@ -1265,6 +1271,12 @@ def add_combine_argument(parser: argparse.ArgumentParser) -> None:
         help="train nothing: write one summary (IQM and CI over seeds, curves) of runs saved by "
         "earlier invocations of this script, e.g. one seed per device call",
     )
+    parser.add_argument(
+        "--across-commits",
+        action="store_true",
+        help="with --combine: accept runs of different commits (say why: only ones whose changes "
+        "leave training alone); the summary records every commit",
+    )
 
 
 def combined(
@@ -1276,7 +1288,7 @@ def combined(
     if not args.combine:
         return False
     try:
-        runs, device, origin = combine_runs(args.combine)
+        runs, device, origin = combine_runs(args.combine, args.across_commits)
     except (OSError, ValueError, KeyError) as error:
         parser.error(f"--combine: {error}")
     write(runs, device, origin)

@@ -38,7 +38,7 @@ from mwjax import (
     warp_graphs,
     warp_streams,
 )
-from mwjax.batching import cond_any
+from mwjax.batching import cond_any, merge_rows
 from mwjax.models import constraint_rows, load_scene
 
 warp_streams.install()
@@ -316,7 +316,11 @@ class Physics:
 
     def step_group(self, g: int, state: PhysicsState, fresh_poses: bool = True) -> PhysicsState:
         """`step` for group `g` alone (a batch of any size). `fresh_poses=False` leaves the poses
-        as MuJoCo C's `mj_step` does, computed before the last substep's integration."""
+        as MuJoCo C's `mj_step` does, computed before the last substep's integration. Under an
+        outer `jax.vmap`, one Warp batch of every instance's rows (`merge_rows` says why)."""
+        return merge_rows(functools.partial(self._step_rows, g, fresh_poses=fresh_poses))(state)
+
+    def _step_rows(self, g: int, state: PhysicsState, fresh_poses: bool) -> PhysicsState:
         step = self._substep[g]
 
         # A device loop rather than five traced calls: the loop body hands Warp the same buffers
@@ -373,7 +377,7 @@ class Physics:
     def kinematics(self, states: tuple[PhysicsState, ...]) -> tuple[PhysicsState, ...]:
         """The poses of `states` computed from their qpos (and mocap bodies)."""
         return tuple(
-            _carried(self._kinematics[g](self.data(g, state)), state.rows_needed)
+            merge_rows(lambda s, g=g: _carried(self._kinematics[g](self.data(g, s)), s.rows_needed))(state)
             for g, state in enumerate(states)
         )
 

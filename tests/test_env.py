@@ -270,6 +270,29 @@ def test_convex_collider_slots_hold_every_candidate_pair_and_a_shortfall_is_repo
         assert not (flags & int(DROPPED & ~OverflowType.CCD)).any(), (slots, flags)
 
 
+def test_an_outer_vmap_gives_every_instance_its_own_contact_buffers():
+    """Rollouts vmapped over keys (as over seeds) step every instance in one Warp batch whose
+    buffers hold all of them: with one contact slot per env (all pick-place's resting object
+    needs), no instance overflows and each is the rollout it would be alone."""
+    env = mwjax.make(["pick-place-v3"], envs_per_task=2, physics=mwjax.PhysicsConfig(contacts_per_env=1))
+
+    def rollout(key: jax.Array) -> tuple[jax.Array, jax.Array]:
+        def step(state: mwjax.State, key: jax.Array) -> tuple[mwjax.State, jax.Array]:
+            state = env.step(state, jax.random.uniform(key, (env.num_envs, 4), minval=-1.0, maxval=1.0))
+            return state, state.info["physics_overflow"]
+
+        state, flags = jax.lax.scan(step, env.reset(key), jax.random.split(key, 20))
+        return state.obs, flags
+
+    keys = jax.random.split(jax.random.key(1), 3)
+    obs, flags = jax.jit(jax.vmap(rollout))(keys)
+    assert not np.asarray(flags).any()
+    for i, key in enumerate(keys):
+        obs_alone, flags_alone = jax.jit(rollout)(key)
+        assert not np.asarray(flags_alone).any()
+        np.testing.assert_allclose(obs[i], obs_alone, atol=1e-5)
+
+
 def test_physics_overflow_is_reported_per_env_and_step(capfd):
     """A constraint buffer too small for the hand's weld (6 rows) raises NEFC in every env at every
     step, counts the rows it needed, and warns once in Python (Warp's in-kernel printing is off);

@@ -265,6 +265,24 @@ def test_combine_refuses_runs_of_different_recipes(tmp_path, monkeypatch, capsys
     assert exit.value.code == 2 and message in capsys.readouterr().err
 
 
+def test_combine_across_commits_records_every_commit(tmp_path, monkeypatch):
+    """`--across-commits` combines seeds of two commits (of one recipe), and says so: the summary's
+    commit names both and every source keeps its own; other differences are still refused."""
+    for folder in ("a", "b", "c"):
+        (tmp_path / folder).mkdir()
+    first, second = _seed_file(tmp_path / "a", 0), _seed_file(tmp_path / "b", 1, "def5678")
+    stem = tmp_path / "all"
+    argv = ["train_mt_ppo.py", "--combine", str(first), str(second), "--across-commits", "--out", str(stem)]
+    monkeypatch.setattr(sys, "argv", argv)
+    ppo.main()
+    summary = json.loads(Path(f"{stem}.json").read_text())
+    assert summary["commit"] == "abc1234+def5678"
+    assert [s["commit"] for s in summary["combined_from"]] == ["abc1234", "def5678"]
+    other = _seed_file(tmp_path / "c", 2, "def5678", learning_rate=1e-3)
+    with pytest.raises(ValueError, match="differ in learning_rate"):
+        ppo.combine_runs([first, other], across_commits=True)
+
+
 def test_seeds_stopped_by_a_time_limit_still_leave_the_finished_ones_summary(tmp_path, monkeypatch):
     """A SIGTERM stops `run_independent` with seed 0 done, seed 1 stopped mid-run and seed 2 never
     started: the summary holds seed 0, the logs that exist lie beside it, the exit code is 1."""

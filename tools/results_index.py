@@ -217,8 +217,8 @@ def _command(files: list[Path], data: dict) -> str:
 
 
 def _commit(name: str, files: list[Path], data: dict) -> str:
-    if data.get("commit"):
-        return str(data["commit"])[:7]
+    if data.get("commit"):  # "a+b" where `--combine --across-commits` joined runs of two commits
+        return "+".join(commit[:7] for commit in str(data["commit"]).split("+"))
     match = _COMMIT.search(name)
     if match:
         return match.group(1)

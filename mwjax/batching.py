@@ -67,8 +67,9 @@ def merge_rows(fn: Callable[[T], U]) -> Callable[[T], U]:
             return x if is_batched else jnp.broadcast_to(x, (axis_size, *x.shape))
 
         rows = jax.tree.map(batched, rows, in_batched[0])
-        out = merged(jax.tree.map(lambda x: x.reshape(-1, *x.shape[2:]), rows))
-        out = jax.tree.map(lambda x: x.reshape(axis_size, -1, *x.shape[1:]), out)
+        # Sizes spelled out, not -1: a leaf may have no elements (e.g. no bodies to capture).
+        out = merged(jax.tree.map(lambda x: x.reshape(x.shape[0] * x.shape[1], *x.shape[2:]), rows))
+        out = jax.tree.map(lambda x: x.reshape(axis_size, x.shape[0] // axis_size, *x.shape[1:]), out)
         return out, jax.tree.map(lambda _: True, out)
 
     return merged

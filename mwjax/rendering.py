@@ -22,7 +22,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 import struct
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any, NamedTuple
 
@@ -33,6 +33,7 @@ import numpy as np
 from mujoco import mjx
 
 from mwjax import warp_render_lighting
+from mwjax.batching import merge_rows
 from mwjax.env import Env, State
 from mwjax.models import SCENES_DIR
 from mwjax.physics import SceneGroup, _graph_mode, local_device
@@ -149,9 +150,9 @@ class _Group:
         mode = _graph_mode(graph_mode)
         self.device_model = mjx.put_model(model, device=device, impl="warp", graph_mode=mode)
         skybox = model.tex_type == mujoco.mjtTexture.mjTEXTURE_SKYBOX
-        self.context = mjx.create_render_context(
+        self._new_context = functools.partial(
+            mjx.create_render_context,
             mjm=model,
-            nworld=len(rows),
             cam_res=(width, height),
             render_rgb=rgb,
             render_depth=depth,
@@ -164,14 +165,31 @@ class _Group:
             # OpenGL's shadow maps leave a blocked light nothing; MJWarp's default leaves 0.3.
             **({"shadow_light_fraction": 0.0} if lighting == "opengl" else {}),
         )
-        if lighting == "opengl":
-            warp_render_lighting.use_opengl_lighting(self.context)
-        self.rgb_adr = [int(a) for a in self.context.rgb_adr.numpy()]
-        self.depth_adr = [int(a) for a in self.context.depth_adr.numpy()]
+        self._opengl_lighting = lighting == "opengl"
+        self._device = device
+        # Per batch size: the rows chosen, or (under an outer vmap, `merge_rows`) all instances'.
+        self._contexts: dict[int, Any] = {}
+        self._makers: dict[int, Callable[[], mjx.Data]] = {}
+        context = self._context(len(rows))
+        self.rgb_adr = [int(a) for a in context.rgb_adr.numpy()]
+        self.depth_adr = [int(a) for a in context.depth_adr.numpy()]
         self.width, self.height = width, height
-        self._make_data = jax.jit(
-            lambda: jax.vmap(lambda _: mjx.make_data(model, device, impl="warp"))(jnp.arange(len(rows)))
-        )
+
+    def _context(self, nworld: int) -> Any:
+        if nworld not in self._contexts:
+            context = self._new_context(nworld=nworld)
+            if self._opengl_lighting:
+                warp_render_lighting.use_opengl_lighting(context)
+            self._contexts[nworld] = context
+        return self._contexts[nworld]
+
+    def _make_data(self, nworld: int) -> mjx.Data:
+        if nworld not in self._makers:
+            model, device = self.model, self._device
+            self._makers[nworld] = jax.jit(
+                lambda: jax.vmap(lambda _: mjx.make_data(model, device, impl="warp"))(jnp.arange(nworld))
+            )
+        return self._makers[nworld]()
 
     def capture(self, state: State, start: int, g: int) -> tuple[Array, ...]:
         physics = state.physics[g]
@@ -197,13 +215,28 @@ class _Group:
         body_xquat: Array,
         target: Array,
     ) -> tuple[list[Array], list[Array]]:
-        n = len(self.rows)
+        """Images of the captured rows; under an outer `jax.vmap`, of every instance's rows in one
+        render call with a context made for all of them (`merge_rows`)."""
+        fields = (geom_xpos, geom_xmat, site_xpos, site_xmat, body_xpos, body_xquat, target)
+        return merge_rows(lambda f: self._draw_rows(*f))(fields)
+
+    def _draw_rows(
+        self,
+        geom_xpos: Array,
+        geom_xmat: Array,
+        site_xpos: Array,
+        site_xmat: Array,
+        body_xpos: Array,
+        body_xquat: Array,
+        target: Array,
+    ) -> tuple[list[Array], list[Array]]:
+        n = geom_xpos.shape[0]
         if len(self.goal_sites):
             site_xpos = site_xpos.at[:, self.goal_sites].set(target[:, None, :])
         pos = jnp.concatenate([geom_xpos, site_xpos], axis=1)[:, self.geom_source]
         mat = jnp.concatenate([geom_xmat, site_xmat.reshape(n, -1, 3, 3)], axis=1)[:, self.geom_source]
         cam_pos, cam_mat = self._camera_poses(body_xpos, body_xquat)
-        data = self._make_data()
+        data = self._make_data(n)
         data = data.replace(
             geom_xpos=pos.astype(jnp.float32),
             geom_xmat=mat.reshape(data.geom_xmat.shape).astype(jnp.float32),
@@ -215,7 +248,7 @@ class _Group:
             light_xdir=jnp.broadcast_to(self.light_xdir, data._impl.light_xdir.shape),
         )
         data = data.replace(_impl=impl)
-        context = self.context.pytree()
+        context = self._context(n).pytree()
         data = jax.vmap(mjx.refit_bvh, in_axes=(None, 0, None))(self.device_model, data, context)
         packed_rgb, packed_depth, _ = jax.vmap(mjx.render, in_axes=(None, 0, None))(
             self.device_model, data, context
@@ -239,8 +272,11 @@ class _Group:
         n = body_xpos.shape[0]
         positions, mats = [], []
         for camera in self.cameras:
-            pos = jnp.broadcast_to(jnp.asarray(camera.pos, jnp.float32), (n, 3))
-            mat = jnp.broadcast_to(jnp.asarray(camera.mat, jnp.float32), (n, 3, 3))
+            # A free camera's pose is per chosen row; merged instances repeat the rows.
+            pos, mat = (jnp.asarray(a, jnp.float32) for a in (camera.pos, camera.mat))
+            if pos.ndim == 2:
+                pos, mat = jnp.tile(pos, (n // len(pos), 1)), jnp.tile(mat, (n // len(mat), 1, 1))
+            pos, mat = jnp.broadcast_to(pos, (n, 3)), jnp.broadcast_to(mat, (n, 3, 3))
             if camera.mode == "track":
                 pos = body_xpos[:, camera.body] + pos
             elif camera.mode == "body":

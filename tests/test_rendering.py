@@ -175,6 +175,22 @@ def test_the_arm_moves_in_the_images(rollout):
     assert rows.mean() > 12 and cols.mean() < 20
 
 
+def test_pixel_observations_vmapped_over_keys_are_each_keys_own():
+    """Pixel observations under an outer `jax.vmap` (over seeds, say) render every instance's envs
+    in one call with a context made for all of them; each instance's images, the per-env free
+    camera's included, are those it renders alone."""
+    env = rendering.PixelObservations(
+        mwjax.make("MT1", task="reach-v3", envs_per_task=2), camera=["corner", "free"], width=16, height=16
+    )
+    keys = jax.random.split(jax.random.key(2), 3)
+    together = jax.jit(jax.vmap(env.reset))(keys)
+    assert together.pixels.shape == (3, 2, 2, 16, 16, 3)
+    for i, key in enumerate(keys):
+        alone = jax.jit(env.reset)(key)
+        np.testing.assert_array_equal(np.asarray(together.pixels[i]), np.asarray(alone.pixels))
+    assert np.asarray(together.pixels).std() > 10
+
+
 def test_record_video_of_a_rollout(rollout, tmp_path):
     env, _, pixels, captures = rollout
     path = rendering.record_video(env.renderer, captures, tmp_path / "reach.gif")

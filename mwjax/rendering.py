@@ -304,7 +304,8 @@ class Renderer:
     (default: the env's).
 
     `render` and `capture`/`draw` are pure JAX functions of the state (jit them, use them in
-    `lax.scan`); the batch size of each scene is fixed at construction.
+    `lax.scan`); the batch size of each scene is fixed at construction (under an outer `jax.vmap`,
+    one batch of every instance's rows).
     """
 
     def __init__(

@@ -1248,7 +1248,7 @@ def combine_runs(paths: list[Path], across_commits: bool = False) -> tuple[list[
     seeds = [run["config"]["seed"] for run in runs]
     if len(set(seeds)) < len(seeds):
         raise ValueError(f"a seed appears twice: {seeds}")
-    for key in ("device", "commit") if not across_commits else ("device",):
+    for key in ("device",) if across_commits else ("device", "commit"):
         values = sorted({data[key] for _, data in files})
         if len(values) > 1:
             hint = " (--across-commits if they train alike)" if key == "commit" else ""

@@ -205,31 +205,13 @@ class _Group:
             target,
         )
 
-    def draw(
-        self,
-        geom_xpos: Array,
-        geom_xmat: Array,
-        site_xpos: Array,
-        site_xmat: Array,
-        body_xpos: Array,
-        body_xquat: Array,
-        target: Array,
-    ) -> tuple[list[Array], list[Array]]:
-        """Images of the captured rows; under an outer `jax.vmap`, of every instance's rows in one
-        render call with a context made for all of them (`merge_rows`)."""
-        fields = (geom_xpos, geom_xmat, site_xpos, site_xmat, body_xpos, body_xquat, target)
-        return merge_rows(lambda f: self._draw_rows(*f))(fields)
+    def draw(self, captured: tuple[Array, ...]) -> tuple[list[Array], list[Array]]:
+        """Images of the captured rows (what `capture` returns); under an outer `jax.vmap`, of
+        every instance's rows in one render call with a context made for all of them (`merge_rows`)."""
+        return merge_rows(self._draw_rows)(captured)
 
-    def _draw_rows(
-        self,
-        geom_xpos: Array,
-        geom_xmat: Array,
-        site_xpos: Array,
-        site_xmat: Array,
-        body_xpos: Array,
-        body_xquat: Array,
-        target: Array,
-    ) -> tuple[list[Array], list[Array]]:
+    def _draw_rows(self, captured: tuple[Array, ...]) -> tuple[list[Array], list[Array]]:
+        geom_xpos, geom_xmat, site_xpos, site_xmat, body_xpos, body_xquat, target = captured
         n = geom_xpos.shape[0]
         if len(self.goal_sites):
             site_xpos = site_xpos.at[:, self.goal_sites].set(target[:, None, :])
@@ -392,8 +374,7 @@ class Renderer:
         rgbs: list[list[Array]] = []
         depths: list[list[Array]] = []
         for k, (_, _, group) in enumerate(self._groups):
-            fields = (getattr(capture, f.name)[k] for f in dataclasses.fields(capture))
-            rgb, depth = group.draw(*fields)
+            rgb, depth = group.draw(tuple(getattr(capture, f.name)[k] for f in dataclasses.fields(capture)))
             rgbs.append(rgb)
             depths.append(depth)
         return Images(

@@ -575,6 +575,10 @@ def train(
         name = "meta_test_success" if split == "test" else "meta_test_success_train_tasks"
         run[f"{name}_per_task"] = dict(zip(env.task_list, success.tolist(), strict=True))
         run[name] = float(success.mean())
+        # Printed as each one ends: a run stopped in the next still shows this one.
+        print(
+            f"meta-test on the {split} tasks: success {run[name]:.3f} {run[f'{name}_per_task']}", flush=True
+        )
     return run | {"eval_s": time.perf_counter() - t0, "params": carry.params}
 
 
@@ -702,14 +706,9 @@ def main() -> None:
         run.pop("params")
         run["name"] = args.set if args.task is None else f"{args.set}:{args.task}"
         print(
-            f"seed {seed}: meta-test success {run['meta_test_success']:.3f} "
-            f"({run['eval_s']:.0f}s) {run['meta_test_success_per_task']}",
+            f"seed {seed}: meta-test success {run['meta_test_success']:.3f} ({run['eval_s']:.0f}s)",
             flush=True,
         )
-        if "meta_test_success_train_tasks" in run:
-            on_train = run["meta_test_success_train_tasks"]
-            per_task = run["meta_test_success_train_tasks_per_task"]
-            print(f"  on the train tasks: {on_train:.3f} {per_task}", flush=True)
         runs.append(run)
     device = jax.devices()[0]
     write_results(runs, args, getattr(device, "device_kind", str(device)))

@@ -20,16 +20,27 @@ import warp
 
 XLA_FLAG = "--xla_gpu_deterministic_ops=true"
 
+# Warp sizes a deterministic kernel's record buffer from a static count of its atomic sites: one
+# record per site and thread. A site inside a loop records once per iteration, beyond that count:
+# outside graph capture the launch then raises, inside it the extra records are dropped silently.
+# MJWarp's `smooth` module has such loops: its mass-matrix kernel (`crb`'s `_M`) adds into each
+# dof's row once per ancestor dof. Its bound is the deepest chain of dofs of any scene mwjax
+# builds (8: the arm's 7 joints and a finger; `tests/test_determinism.py` checks every scene).
+LOOP_RECORDS = {"mujoco.mjx.third_party.mujoco_warp._src.smooth": 8}
+
 
 def enable() -> None:
     """Deterministic Warp kernels and XLA ops for the rest of the process (see the module doc)."""
+    import mujoco.mjx.third_party.mujoco_warp  # noqa: F401  (defines the modules set below)
+
     mode = warp.DeterministicMode.RUN_TO_RUN
     warp.config.deterministic = mode
-    # Modules that exist already (MJWarp defines many at import) take the option too; they are
+    # Modules that exist already (all of MJWarp's, imported above) take the options too; they are
     # rebuilt, with a new hash, at their next launch.
-    for module in list(warp._src.context.user_modules.values()):
-        if module.options.get("deterministic") != mode:
-            module.options["deterministic"] = mode
+    for name, module in list(warp._src.context.user_modules.items()):
+        options = {"deterministic": mode, "deterministic_max_records": LOOP_RECORDS.get(name, 0)}
+        if any(module.options.get(k) != v for k, v in options.items()):
+            module.options.update(options)
             module.mark_modified()
             module.unload()
     flags = os.environ.get("XLA_FLAGS", "")

@@ -14,7 +14,8 @@ import numpy as np
 import pytest
 
 import mwjax
-from mwjax import determinism
+from mwjax import determinism, kernels
+from mwjax.physics import PhysicsConfig, warp_model
 
 ROLLOUT = """
 import os, sys, jax, jax.numpy as jnp, numpy as np, warp
@@ -28,6 +29,9 @@ np.save(sys.argv[1], np.asarray(state.obs))
 modules = list(warp._src.context.user_modules.values())
 assert determinism.enabled() == (os.environ.get("MWJAX_DETERMINISTIC") == "1")
 assert all(m.options["deterministic"] == warp.config.deterministic for m in modules), "a module kept its mode"
+named = warp._src.context.user_modules
+bounds = {name: named[name].options.get("deterministic_max_records") for name in determinism.LOOP_RECORDS}
+assert not determinism.enabled() or bounds == determinism.LOOP_RECORDS, bounds
 print(os.environ.get("XLA_FLAGS", ""))
 """
 
@@ -53,3 +57,18 @@ def test_the_switch_reaches_warp_and_xla_and_steps_as_the_default(request):
     assert run.returncode == 0, run.stderr[-3000:]
     assert "--xla_gpu_deterministic_ops=true" in run.stdout
     np.testing.assert_array_equal(np.load(workdir / "obs.npy"), np.asarray(state.obs))
+
+
+def test_loop_records_cover_the_deepest_dof_chain_of_every_scene():
+    # MJWarp's mass-matrix kernel records once per ancestor dof of each dof (mwjax.determinism).
+    bound = determinism.LOOP_RECORDS["mujoco.mjx.third_party.mujoco_warp._src.smooth"]
+    config = PhysicsConfig()
+    for scene, bodies in kernels.scenes("MT50"):
+        model = warp_model(scene, bodies, config)
+        depths = []
+        for dof in range(model.nv):
+            depth = 0
+            while dof >= 0:
+                depth, dof = depth + 1, model.dof_parentid[dof]
+            depths.append(depth)
+        assert max(depths) <= bound, f"{scene}: a chain of {max(depths)} dofs"

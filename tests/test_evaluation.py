@@ -123,3 +123,17 @@ def test_iqm_and_stratified_bootstrap():
     assert flat.low == pytest.approx(0.7) and flat.high == pytest.approx(0.7)
     with pytest.raises(ValueError):
         stats.stratified_bootstrap_ci(np.ones(5))
+
+
+def test_probability_of_improvement_is_the_mean_per_task_mann_whitney_u():
+    rng = np.random.default_rng(1)
+    # Success rates on a grid of 0.1 so that ties occur, as with 50 evaluation episodes.
+    x, y = rng.integers(0, 11, (5, 6)) / 10, rng.integers(0, 11, (7, 6)) / 10
+    u = [scipy.stats.mannwhitneyu(x[:, t], y[:, t]).statistic / (len(x) * len(y)) for t in range(6)]
+    estimate = stats.probability_of_improvement(x, y, reps=300)
+    assert estimate.value == pytest.approx(np.mean(u))
+    assert estimate.low <= estimate.value <= estimate.high
+    assert stats.probability_of_improvement(y, x, reps=10).value == pytest.approx(1 - estimate.value)
+    assert stats.probability_of_improvement(x + 2, x, reps=10) == (1.0, 1.0, 1.0)
+    with pytest.raises(ValueError, match="same tasks"):
+        stats.probability_of_improvement(x, y[:, :5])

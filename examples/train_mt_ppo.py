@@ -12,7 +12,8 @@ epochs of minibatch updates) without leaving the device; the host only prints pr
 those chunks. The policy sees the 39-d observation plus a one-hot task id; observations are
 normalized with running statistics and rewards with a running scale per task (the ten tasks' V2
 rewards differ in scale), and advantages are normalized per task, so that no task's gradient
-drowns out another's. At the end the policy's mean action is evaluated with
+drowns out another's (`--normalization shared` normalizes both over all tasks together, keeping
+their relative reward scales). At the end the policy's mean action is evaluated with
 `mwjax.evaluation.evaluator` (50 episodes per task, one per goal variant, success at any step),
 and the learning curve is saved as JSON and PNG in `benchmarks/results/train/`.
 
@@ -91,6 +92,10 @@ class Config:
     # starts its envs at random episode lengths for the same reason. Multiples of `unroll` keep
     # the restarts to a few steps of the first episode (each one resets rows of the whole batch).
     staggered_starts: bool = True
+    # What the reward scale and the advantages are normalized over: each task's own samples
+    # ("per-task": no task's reward scale drowns out another's), or all tasks' together ("shared":
+    # the tasks keep their relative reward scales, as for a learner without per-task statistics).
+    normalization: Literal["per-task", "shared"] = "per-task"
     reward_version: str = "v2"
     max_episode_steps: int = 500
     seed: int = 0
@@ -431,7 +436,10 @@ class Trainer:
             return jnp.where(truncated, 0.0, running), running
 
         running, returns = jax.lax.scan(accumulate, carry.running_return, (batch.reward, batch.truncated))
-        stats = carry.norm.returns.merge(self._per_task(returns).transpose(0, 2, 1), (0, 1), self.axis)
+        by_task = self._per_task(returns).transpose(0, 2, 1)  # (unroll, rows, tasks)
+        if self.config.normalization == "shared":  # every task's column sees every task's returns
+            by_task = jnp.broadcast_to(returns[..., None], (*returns.shape, self.n_tasks))
+        stats = carry.norm.returns.merge(by_task, (0, 1), self.axis)
         scale = jnp.repeat(jnp.sqrt(stats.var + 1e-8), self.rows_per_task)
         norm = carry.norm._replace(returns=stats)
         return carry._replace(norm=norm, running_return=running), batch.reward / scale
@@ -481,13 +489,14 @@ class Trainer:
         carry, rewards = self._scaled_rewards(carry, batch)
         advantages, targets = self._advantages(carry.params, carry.norm, carry.env_state, batch, rewards)
         per_task = self._per_task(advantages)
+        axes = (0, 2) if cfg.normalization == "per-task" else (0, 1, 2)
         if self.axis is None:
-            per_task = (per_task - per_task.mean(axis=(0, 2), keepdims=True)) / (
-                per_task.std(axis=(0, 2), keepdims=True) + 1e-8
+            per_task = (per_task - per_task.mean(axis=axes, keepdims=True)) / (
+                per_task.std(axis=axes, keepdims=True) + 1e-8
             )
-        else:  # each task's moments over every device's samples
-            mean = self._pmean(per_task.mean(axis=(0, 2), keepdims=True))
-            var = self._pmean(((per_task - mean) ** 2).mean(axis=(0, 2), keepdims=True))
+        else:  # the moments over every device's samples
+            mean = self._pmean(per_task.mean(axis=axes, keepdims=True))
+            var = self._pmean(((per_task - mean) ** 2).mean(axis=axes, keepdims=True))
             per_task = (per_task - mean) / (jnp.sqrt(var) + 1e-8)
         advantages = per_task.reshape(advantages.shape)
         # The loss sees observations as the rollout's policy saw them; the statistics of this
@@ -971,6 +980,12 @@ def main() -> None:
     )
     parser.add_argument("--init-log-std", type=float, default=defaults.init_log_std)
     parser.add_argument(
+        "--normalization",
+        choices=["per-task", "shared"],
+        default=defaults.normalization,
+        help="reward scale and advantages normalized over each task's samples, or over all tasks' together",
+    )
+    parser.add_argument(
         "--staggered-starts",
         action=argparse.BooleanOptionalAction,
         default=defaults.staggered_starts,
@@ -1086,6 +1101,7 @@ def main() -> None:
             architecture=args.architecture,
             init_log_std=args.init_log_std,
             staggered_starts=args.staggered_starts,
+            normalization=args.normalization,
             reward_version=args.reward_version,
             seed=seed,
             devices=jax.device_count() if args.devices == "all" else int(args.devices),

@@ -50,6 +50,20 @@ def test_updates_are_finite_and_change_the_policy(trainer):
     assert np.all(np.asarray(carry.norm.returns.var) > 0)
 
 
+def test_shared_normalization_gives_every_task_one_reward_scale(trainer):
+    # reach and push return on different scales: per task their running statistics differ.
+    own, _ = trainer.train_chunk(trainer.init(jax.random.key(0)), 1)
+    own_mean, own_var = np.asarray(own.norm.returns.mean), np.asarray(own.norm.returns.var)
+    assert own_var[0] != own_var[1]
+    shared = ppo.Trainer(dataclasses.replace(CONFIG, normalization="shared"))
+    carry, metrics = shared.train_chunk(shared.init(jax.random.key(0)), 1)
+    var = np.asarray(carry.norm.returns.var)
+    assert var[0] == var[1] and np.isfinite(metrics.loss)
+    # The first rollout does not depend on the normalization, so the shared statistic is the
+    # pooled one of the two tasks' (equally many samples each).
+    np.testing.assert_allclose(var[0], own_var.mean() + own_mean.var(), rtol=1e-5)
+
+
 def test_checkpoints_round_trip(trainer, tmp_path):
     carry, _ = trainer.train_chunk(trainer.init(jax.random.key(3)), 2)
     curve = [{"updates": 2, "loss": 0.5}]

@@ -29,6 +29,7 @@ from mujoco.mjx.third_party.mujoco_warp._src.collision_primitive import _PRIMITI
 
 from mwjax import (
     caches,
+    determinism,
     host_call,
     progress,
     warp_ast,
@@ -122,7 +123,8 @@ class PhysicsConfig:
     # `contacts_per_env`. Each slot is ~7.5 KB of Warp scratch per collision call.
     ccd_pairs_per_env: int | Literal["per_scene"] = "per_scene"
     # Who captures the CUDA graphs of a Warp step: None is MJX's choice ("warp" on GPU: Warp
-    # captures each call and replays it for the same buffer addresses), "jax" lets XLA record the
+    # captures each call and replays it for the same buffer addresses; under
+    # `mwjax.determinism`, "none", so that Warp checks its record buffers), "jax" lets XLA record the
     # kernels into its own command buffers, "none" launches them one by one. A name of
     # `warp.JaxCallableGraphMode`, lower case. "warp" keeps a graph, with the scratch it allocated,
     # per call site and set of buffer addresses (up to 32 per Warp callable; `mwjax.warp_graphs`).
@@ -455,7 +457,10 @@ def local_device() -> jax.Device:
 
 def _graph_mode(name: str | None) -> warp.JaxCallableGraphMode | None:
     if name is None:
-        return None
+        # Warp checks a deterministic kernel's record buffers only when it launches it outside
+        # graph capture: captured, the records beyond the buffer are dropped silently (a wrong
+        # sum, not a reordered one); launched one by one, the step raises.
+        return warp.JaxCallableGraphMode.NONE if determinism.enabled() else None
     modes = {mode.name.lower(): mode for mode in warp.JaxCallableGraphMode}
     if name not in modes:
         raise ValueError(f"unknown graph_mode {name!r}; known: {', '.join(modes)}")

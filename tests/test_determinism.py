@@ -32,6 +32,8 @@ assert all(m.options["deterministic"] == warp.config.deterministic for m in modu
 named = warp._src.context.user_modules
 bounds = {name: named[name].options.get("deterministic_max_records") for name in determinism.LOOP_RECORDS}
 assert not determinism.enabled() or bounds == determinism.LOOP_RECORDS, bounds
+graph_mode = env.physics.groups[0].device_model.opt._impl.graph_mode
+assert determinism.enabled() == (graph_mode == warp.JaxCallableGraphMode.NONE), graph_mode
 print(os.environ.get("XLA_FLAGS", ""))
 """
 

@@ -436,8 +436,9 @@ class Trainer:
             return jnp.where(truncated, 0.0, running), running
 
         running, returns = jax.lax.scan(accumulate, carry.running_return, (batch.reward, batch.truncated))
-        by_task = self._per_task(returns).transpose(0, 2, 1)  # (unroll, rows, tasks)
-        if self.config.normalization == "shared":  # every task's column sees every task's returns
+        if self.config.normalization == "per-task":
+            by_task = self._per_task(returns).transpose(0, 2, 1)  # (unroll, rows, tasks)
+        else:  # every task's column sees every task's returns
             by_task = jnp.broadcast_to(returns[..., None], (*returns.shape, self.n_tasks))
         stats = carry.norm.returns.merge(by_task, (0, 1), self.axis)
         scale = jnp.repeat(jnp.sqrt(stats.var + 1e-8), self.rows_per_task)

@@ -78,6 +78,10 @@ def child(args: argparse.Namespace) -> None:
     t0 = time.perf_counter()
     prints = np.asarray(jax.block_until_ready(run(state, jax.random.key(args.seed + 1))))
     seconds = time.perf_counter() - t0
+    digest = hashlib.sha256(prints.tobytes()).hexdigest()
+    # Also on stderr now: a parent cut before its last run still leaves this run's outcome.
+    rate = env.num_envs * args.steps / seconds
+    progress(f"rollout in {seconds:.1f} s ({rate:,.0f} env steps/s), sha256 {digest}")
     device = jax.devices()[0]
     print(
         json.dumps(
@@ -86,7 +90,7 @@ def child(args: argparse.Namespace) -> None:
                 "num_envs": env.num_envs,
                 "rollout_s": seconds,
                 "env_steps_per_s": env.num_envs * args.steps / seconds,
-                "sha256": hashlib.sha256(prints.tobytes()).hexdigest(),
+                "sha256": digest,
                 "steps": prints.tolist(),
             }
         )

@@ -13,6 +13,7 @@ mode (a separate entry in Warp's cache) and run slower.
 
 from __future__ import annotations
 
+import math
 import os
 import warnings
 
@@ -27,6 +28,14 @@ XLA_FLAG = "--xla_gpu_deterministic_ops=true"
 # dof's row once per ancestor dof. Its bound is the deepest chain of dofs of any scene mwjax
 # builds (8: the arm's 7 joints and a finger; `tests/test_determinism.py` checks every scene).
 LOOP_RECORDS = {"mujoco.mjx.third_party.mujoco_warp._src.smooth": 8}
+
+# MJWarp's elliptic-cone Hessian kernel adds one record per contact it visits, and on a GPU each
+# thread visits ceil(naconmax / dim_block) contacts, dim_block = ceil(sm_count * 6 * 256 / ntri)
+# (`solver.py`, mujoco-mjx 3.17; on a CPU dim_block = naconmax, one contact per thread): its bound
+# grows with the contact buffer, i.e. with the batch. A bound on the whole solver module would size
+# every solver kernel's record buffers by it, so the mode gives this kernel a module of its own.
+CONE_HESSIAN = "_update_gradient_JTCJ_dense"
+_SOLVER = "mujoco.mjx.third_party.mujoco_warp._src.solver"
 
 
 def enable() -> None:
@@ -56,6 +65,32 @@ def enable() -> None:
         )
         return
     os.environ["XLA_FLAGS"] = f"{flags} {XLA_FLAG}".strip()
+
+
+def cone_hessian_records(naconmax: int, nv: int, sm_count: int) -> int:
+    """Records per thread of MJWarp's elliptic-cone Hessian kernel for `naconmax` contacts in a
+    scene of `nv` dofs on a GPU of `sm_count` multiprocessors, rounded up to a power of two so
+    that batches of similar size share one compiled kernel."""
+    ntri = nv * (nv + 1) // 2
+    per_thread = math.ceil(naconmax / math.ceil(sm_count * 6 * 256 / ntri))
+    return 1 << max(0, per_thread - 1).bit_length()
+
+
+def reserve_cone_hessian(naconmax: int, nv: int) -> None:
+    """In the mode, make MJWarp's elliptic-cone Hessian kernel record enough for a contact buffer
+    of `naconmax` contacts in a scene of `nv` dofs (on every GPU of this process); call before
+    the physics that uses it first launches. A no-op outside the mode or where it suffices."""
+    if not enabled():
+        return
+    import mujoco.mjx.third_party.mujoco_warp._src.solver as solver
+
+    gpus = [warp.get_device(f"cuda:{i}") for i in range(warp.get_cuda_device_count())]
+    bound = max((cone_hessian_records(naconmax, nv, gpu.sm_count) for gpu in gpus), default=1)
+    kernel = getattr(solver, CONE_HESSIAN)
+    if kernel.module.name != _SOLVER and kernel.module.options["deterministic_max_records"] >= bound:
+        return
+    options = dict(warp._src.context.user_modules[_SOLVER].options, deterministic_max_records=bound)
+    setattr(solver, CONE_HESSIAN, warp.kernel(kernel.func, module="unique", module_options=options))
 
 
 def enabled() -> bool:

@@ -279,6 +279,7 @@ class Physics:
 
     def _make_data(self, g: int, rows: int) -> mjx.Data:
         group = self.groups[g]
+        determinism.reserve_cone_hessian(rows * self.config.contacts_per_env, group.model.nv)
         make = functools.partial(
             mjx.make_data,
             group.model,

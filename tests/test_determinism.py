@@ -33,6 +33,10 @@ named = warp._src.context.user_modules
 bounds = {name: named[name].options.get("deterministic_max_records") for name in determinism.LOOP_RECORDS}
 assert not determinism.enabled() or bounds == determinism.LOOP_RECORDS, bounds
 graph_mode = env.physics.groups[0].device_model.opt._impl.graph_mode
+from mujoco.mjx.third_party.mujoco_warp._src import solver
+cone = getattr(solver, determinism.CONE_HESSIAN)
+rehomed = cone.module.name != solver.__name__ and cone.module.options["deterministic_max_records"] >= 1
+assert rehomed == determinism.enabled() and (not rehomed or cone.module.execs), "cone Hessian kernel"
 assert determinism.enabled() == (graph_mode == warp.JaxCallableGraphMode.NONE), graph_mode
 print(os.environ.get("XLA_FLAGS", ""))
 """
@@ -74,3 +78,17 @@ def test_loop_records_cover_the_deepest_dof_chain_of_every_scene():
                 depth, dof = depth + 1, model.dof_parentid[dof]
             depths.append(depth)
         assert max(depths) <= bound, f"{scene}: a chain of {max(depths)} dofs"
+
+
+def test_cone_hessian_records_cover_every_contact_a_thread_visits():
+    # MJWarp launches the kernel on dim_block x ntri threads, each visiting ceil(naconmax /
+    # dim_block) contacts with one record each (mwjax.determinism): the bound must cover that
+    # for any batch, here from 1 to 409,600 envs of 64 contacts on GPUs of 16 to 132 SMs.
+    for nv in (9, 12, 16):
+        ntri = nv * (nv + 1) // 2
+        for sm_count in (16, 108, 132):
+            dim_block = -(-sm_count * 6 * 256 // ntri)
+            for envs in (1, 1024, 13107, 409600):
+                bound = determinism.cone_hessian_records(64 * envs, nv, sm_count)
+                assert bound * dim_block >= 64 * envs and bound & (bound - 1) == 0
+                assert bound < 2 * -(-64 * envs // dim_block) or bound == 1

@@ -89,7 +89,7 @@ def child(args: argparse.Namespace) -> None:
                 "device": getattr(device, "device_kind", str(device)),
                 "num_envs": env.num_envs,
                 "rollout_s": seconds,
-                "env_steps_per_s": env.num_envs * args.steps / seconds,
+                "env_steps_per_s": rate,
                 "sha256": digest,
                 "steps": prints.tolist(),
             }

@@ -89,7 +89,8 @@ def reserve_cone_hessian(naconmax: int, nv: int) -> None:
     kernel = getattr(solver, CONE_HESSIAN)
     if kernel.module.name != _SOLVER and kernel.module.options["deterministic_max_records"] >= bound:
         return
-    options = dict(warp._src.context.user_modules[_SOLVER].options, deterministic_max_records=bound)
+    # The solver module's options (its mode included) come along: a re-homed kernel's are a copy.
+    options = dict(kernel.module.options, deterministic_max_records=bound)
     setattr(solver, CONE_HESSIAN, warp.kernel(kernel.func, module="unique", module_options=options))
 
 

@@ -91,6 +91,11 @@ class Config:
     max_grad_norm: float = 1.0
     embed: int = 256
     hidden: int = 256
+    # Hidden layers of the policy and value heads after the GRU. Empty: each head is one linear
+    # layer on the GRU state. Otherwise each is an MLP on the GRU state and the input embedding
+    # side by side, so the current observation also reaches the action by a feed-forward path
+    # (the PPO example's networks are 3 x 256 MLPs).
+    head: tuple[int, ...] = ()
     init_log_std: float = -0.5
     # Start the envs at random points of their trials (`Trainer.stagger`); otherwise in lockstep.
     staggered_starts: bool = True
@@ -115,8 +120,9 @@ class Params(NamedTuple):
     # A GRU cell (PyTorch's gate layout: reset, update, candidate): input and hidden weights, biases.
     gru_x: tuple[Array, Array]
     gru_h: tuple[Array, Array]
-    policy: tuple[Array, Array]
-    value: tuple[Array, Array]
+    # Layers `(w, b)`: one on the GRU state, or with `Config.head` an MLP on `[state, embedding]`.
+    policy: list[tuple[Array, Array]]
+    value: list[tuple[Array, Array]]
     log_std: Array  # (4,)
 
 
@@ -205,12 +211,22 @@ class Trainer:
         cfg = self.config
         keys = jax.random.split(key, 5)
         h = cfg.hidden
+        sizes = (h + cfg.embed, *cfg.head) if cfg.head else (h,)
+
+        def mlp(key: Array, out: int, out_scale: float) -> list[tuple[Array, Array]]:
+            keys = jax.random.split(key, len(sizes))
+            scales = [math.sqrt(2.0)] * (len(sizes) - 1) + [out_scale]
+            return [
+                _dense_init(k, n_in, n_out, scale)
+                for k, n_in, n_out, scale in zip(keys, sizes, (*sizes[1:], out), scales, strict=True)
+            ]
+
         return Params(
             embed=_dense_init(keys[0], INPUT_SIZE, cfg.embed, math.sqrt(2.0)),
             gru_x=_dense_init(keys[1], cfg.embed, 3 * h, 1.0),
             gru_h=_dense_init(keys[2], h, 3 * h, 1.0),
-            policy=_dense_init(keys[3], h, 4, 0.01),
-            value=_dense_init(keys[4], h, 1, 1.0),
+            policy=mlp(keys[3], 4, 0.01),
+            value=mlp(keys[4], 1, 1.0),
             log_std=jnp.full(4, cfg.init_log_std, jnp.float32),  # not weak: one compile
         )
 
@@ -223,8 +239,15 @@ class Trainer:
         (rx, zx, nx), (rh, zh, nh) = jnp.split(gx, 3, axis=-1), jnp.split(gh, 3, axis=-1)
         r, z = jax.nn.sigmoid(rx + rh), jax.nn.sigmoid(zx + zh)
         hidden = (1 - z) * jnp.tanh(nx + r * nh) + z * hidden
-        value = hidden @ params.value[0] + params.value[1]
-        return hidden, hidden @ params.policy[0] + params.policy[1], value[..., 0]
+        features = jnp.concatenate([hidden, x], axis=-1) if len(params.policy) > 1 else hidden
+
+        def mlp(layers: list[tuple[Array, Array]]) -> Array:
+            y = features
+            for w, b in layers[:-1]:
+                y = jax.nn.swish(y @ w + b)
+            return y @ layers[-1][0] + layers[-1][1]
+
+        return hidden, mlp(params.policy), mlp(params.value)[..., 0]
 
     def sequence(self, params: Params, hidden: Array, inputs: Array, reset: Array) -> tuple[Array, Array]:
         """The policy over `(steps, envs, ...)` inputs from `hidden`, zeroed where `reset`:
@@ -618,6 +641,14 @@ def main() -> None:
     parser.add_argument("--gamma", type=float, default=d.gamma)
     parser.add_argument("--entropy-coef", type=float, default=d.entropy_coef)
     parser.add_argument("--hidden", type=int, default=d.hidden, help="GRU size")
+    parser.add_argument(
+        "--head",
+        type=int,
+        nargs="*",
+        default=list(d.head),
+        help="hidden layers of the policy and value heads, on the GRU state and the input embedding "
+        "(none: one linear layer on the GRU state)",
+    )
     parser.add_argument("--reward-version", default=d.reward_version)
     parser.add_argument("--adaptation-episodes", type=int, default=d.adaptation_episodes)
     parser.add_argument("--evaluation-episodes", type=int, default=d.evaluation_episodes)
@@ -691,6 +722,7 @@ def main() -> None:
             gamma=args.gamma,
             entropy_coef=args.entropy_coef,
             hidden=args.hidden,
+            head=tuple(args.head),
             staggered_starts=args.staggered_starts,
             per_task_advantages=args.per_task_advantages,
             reward_version=args.reward_version,

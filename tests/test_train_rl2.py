@@ -298,3 +298,24 @@ def test_advantages_are_normalized_per_train_task(per_task):
     else:
         np.testing.assert_allclose([out.mean(), out.std()], [0.0, 1.0], atol=1e-4)
         assert by_task[:, 0].std() < 0.05
+
+
+def test_mlp_heads_read_the_gru_state_and_the_input_embedding():
+    """`Config.head`: policy and value are MLPs on `[GRU state, embedding]`, trained through."""
+    config = dataclasses.replace(CONFIG, head=(12,))
+    params = rl2.Trainer.init_params(types.SimpleNamespace(config=config), jax.random.key(0))
+    for layers, out in ((params.policy, 4), (params.value, 1)):
+        assert [w.shape for w, _ in layers] == [(config.hidden + config.embed, 12), (12, out)]
+    inputs = jax.random.normal(jax.random.key(1), (3, rl2.INPUT_SIZE))
+    hidden = jax.random.normal(jax.random.key(2), (3, config.hidden))
+
+    def objective(params):
+        _, mean, value = rl2.Trainer.core(params, hidden, inputs)
+        return jnp.sum(mean**2) + jnp.sum(value**2)
+
+    grads = jax.grad(objective)(params)
+    for w, _ in [*grads.policy, *grads.value, grads.embed]:
+        assert np.all(np.isfinite(w)) and np.any(w != 0)
+    # Without `head` each is one linear layer on the GRU state, as before.
+    plain = rl2.Trainer.init_params(types.SimpleNamespace(config=CONFIG), jax.random.key(0))
+    assert [w.shape for w, _ in plain.policy] == [(CONFIG.hidden, 4)]

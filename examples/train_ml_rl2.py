@@ -103,6 +103,10 @@ class Config:
     # so that no task's gradient drowns out another's. The learner knows each env's task; the
     # policy still does not (its inputs are the same either way).
     per_task_advantages: bool = True
+    # Scale the learning signal (value targets, advantages) by each train task's running return
+    # std instead of one for all, as the PPO example does. The reward the policy sees keeps the
+    # one scale (a per-task scale would give the task away).
+    per_task_returns: bool = False
     reward_version: str = "v2"
     seed: int = 0
     # The meta-test (the paper: 10 goals per test task, 10 adaptation and 3 evaluation episodes).
@@ -137,10 +141,16 @@ class Transition(NamedTuple):
     trial_end: Array  # the env's trial ended at this step (terminal)
 
 
+class Normalizers(NamedTuple):
+    obs: ppo.RunningStats
+    returns: ppo.RunningStats  # one scale for all tasks: the reward in the policy's input
+    task_returns: ppo.RunningStats  # per train task: the learning signal with `per_task_returns`
+
+
 class Carry(NamedTuple):
     params: Params
     opt_state: Any
-    norm: ppo.Normalizers  # `returns` is one global scale: per task would tell the policy its task
+    norm: Normalizers
     env_state: mwjax.State
     hidden: Array  # (num_envs, hidden)
     prev_action: Array
@@ -262,9 +272,7 @@ class Trainer:
         return mean, value
 
     @staticmethod
-    def inputs(
-        norm: ppo.Normalizers, obs: Array, prev_action: Array, prev_reward: Array, first: Array
-    ) -> Array:
+    def inputs(norm: Normalizers, obs: Array, prev_action: Array, prev_reward: Array, first: Array) -> Array:
         reward = prev_reward / jnp.sqrt(norm.returns.var + 1e-8)
         return jnp.concatenate(
             [
@@ -296,7 +304,11 @@ class Trainer:
 
     def _init_rest_of_carry(self, params: Params, env_key: Array, key: Array) -> Carry:
         n = self.env.num_envs
-        norm = ppo.Normalizers(ppo.RunningStats.zeros((OBS_SIZE,)), ppo.RunningStats.zeros((1,)))
+        norm = Normalizers(
+            ppo.RunningStats.zeros((OBS_SIZE,)),
+            ppo.RunningStats.zeros((1,)),
+            ppo.RunningStats.zeros((self.n_tasks,)),
+        )
         zeros = jnp.zeros(n)
         return Carry(
             params=params,
@@ -389,6 +401,13 @@ class Trainer:
         )
         return advantages, advantages + batch.value
 
+    def reward_scale(self, norm: Normalizers) -> Array:
+        """What the learner divides rewards by: the running std of the discounted return, one for
+        all tasks, or per env its train task's with `per_task_returns` (envs lie task by task)."""
+        if self.config.per_task_returns:
+            return jnp.repeat(jnp.sqrt(norm.task_returns.var + 1e-8), self.config.envs_per_task)
+        return jnp.sqrt(norm.returns.var + 1e-8)
+
     def _normalized(self, advantages: Array) -> Array:
         """`(unroll, envs)` advantages to mean 0 and std 1, per train task (envs lie task by
         task) with `per_task_advantages`, else over all."""
@@ -423,8 +442,12 @@ class Trainer:
             return jnp.where(end, 0.0, running), running
 
         running, returns = jax.lax.scan(accumulate, carry.running_return, (batch.reward, batch.trial_end))
-        norm = carry.norm._replace(returns=carry.norm.returns.merge(returns[..., None], (0, 1)))
-        advantages, targets = self._advantages(carry, batch, batch.reward / jnp.sqrt(norm.returns.var + 1e-8))
+        by_task = returns.reshape(returns.shape[0], self.n_tasks, -1).transpose(0, 2, 1)  # (unroll, E, tasks)
+        norm = carry.norm._replace(
+            returns=carry.norm.returns.merge(returns[..., None], (0, 1)),
+            task_returns=carry.norm.task_returns.merge(by_task, (0, 1)),
+        )
+        advantages, targets = self._advantages(carry, batch, batch.reward / self.reward_scale(norm))
         advantages = self._normalized(advantages)
         norm = norm._replace(obs=norm.obs.merge(batch.obs, (0, 1)))
 
@@ -484,7 +507,7 @@ class Trainer:
             raise ValueError(f"split must be 'test' or 'train', got {split!r}")
         return self.test_env if split == "test" else self.train_tasks_eval_env
 
-    def meta_tester(self, split: str = "test") -> Callable[[Params, ppo.Normalizers, Array], MetaTestResult]:
+    def meta_tester(self, split: str = "test") -> Callable[[Params, Normalizers, Array], MetaTestResult]:
         """A jitted `(params, norm, key) -> MetaTestResult` on the test tasks (module docstring),
         or with `split="train"` the same protocol on the train tasks."""
         cfg = self.config
@@ -492,7 +515,7 @@ class Trainer:
         n = env.num_envs
         horizon = cfg.max_episode_steps
 
-        def run(params: Params, norm: ppo.Normalizers, key: Array) -> MetaTestResult:
+        def run(params: Params, norm: Normalizers, key: Array) -> MetaTestResult:
             reset_key, key = jax.random.split(key)
 
             def one_round(state: mwjax.State, xs: tuple[Array, Array]) -> tuple[mwjax.State, Array]:
@@ -671,6 +694,12 @@ def main() -> None:
         default=d.per_task_advantages,
         help="normalize advantages per train task (the learner's knowledge; the policy sees no task)",
     )
+    parser.add_argument(
+        "--per-task-returns",
+        action=argparse.BooleanOptionalAction,
+        default=d.per_task_returns,
+        help="scale the learning signal by each train task's return std (the input reward keeps one scale)",
+    )
     parser.add_argument("--seeds", type=int, nargs="+", default=[0])
     parser.add_argument(
         "--parallel",
@@ -725,6 +754,7 @@ def main() -> None:
             head=tuple(args.head),
             staggered_starts=args.staggered_starts,
             per_task_advantages=args.per_task_advantages,
+            per_task_returns=args.per_task_returns,
             reward_version=args.reward_version,
             seed=seed,
             adaptation_episodes=args.adaptation_episodes,

@@ -64,6 +64,9 @@ def test_updates_are_finite_and_change_the_policy(trainer):
     assert all(np.all(np.isfinite(x)) for x in after)
     assert any(not np.array_equal(old, new) for old, new in zip(before, after, strict=True))
     assert float(carry.norm.obs.count) == 2 * EPISODE * trainer.env.num_envs
+    # One train task: its own return statistics are the one scale's.
+    for own, shared in zip(carry.norm.task_returns, carry.norm.returns, strict=True):
+        np.testing.assert_allclose(np.asarray(own), np.asarray(shared))
 
 
 def test_the_hidden_state_runs_on_within_a_trial_and_resets_between_trials(trainer):
@@ -319,3 +322,19 @@ def test_mlp_heads_read_the_gru_state_and_the_input_embedding():
     # Without `head` each is one linear layer on the GRU state, as before.
     plain = rl2.Trainer.init_params(types.SimpleNamespace(config=CONFIG), jax.random.key(0))
     assert [w.shape for w, _ in plain.policy] == [(CONFIG.hidden, 4)]
+
+
+def test_per_task_returns_scale_each_envs_rewards_by_its_own_tasks_return_std():
+    stats = rl2.ppo.RunningStats
+    norm = rl2.Normalizers(
+        stats.zeros((3,)),
+        stats(jnp.array(5.0), jnp.array([1.0]), jnp.array([9.0])),
+        stats(jnp.array(5.0), jnp.array([1.0, 2.0]), jnp.array([4.0, 16.0])),
+    )
+
+    def scale(per_task_returns):
+        config = dataclasses.replace(CONFIG, envs_per_task=3, per_task_returns=per_task_returns)
+        return np.asarray(rl2.Trainer.reward_scale(types.SimpleNamespace(config=config), norm))
+
+    np.testing.assert_allclose(scale(True), [2.0, 2.0, 2.0, 4.0, 4.0, 4.0], rtol=1e-6)
+    np.testing.assert_allclose(scale(False), [3.0], rtol=1e-6)

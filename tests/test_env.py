@@ -99,14 +99,18 @@ def test_step_under_an_outer_vmap_is_each_instance_stepped_alone(env, compiled):
     """`jax.vmap(env.step)` (over seeds, say), in a step where one instance's episodes end and the
     other's go on: each instance is bit for bit the plain step of its own state."""
     reset, step = compiled
-    states = jax.tree.map(lambda *x: jnp.stack(x), *(reset(jax.random.key(k)) for k in (5, 6)))
+    # Stacking and indexing the states leaf by leaf in one program each (eagerly, each leaf's
+    # shape would compile its own small program: about 4 s on a 2-core CPU).
+    stack = jax.jit(lambda *trees: jax.tree.map(lambda *x: jnp.stack(x), *trees))
+    take = jax.jit(lambda tree, i: jax.tree.map(lambda x: x[i], tree))
+    states = stack(*(reset(jax.random.key(k)) for k in (5, 6)))
     states = dataclasses.replace(states, steps=states.steps.at[0].set(HORIZON - 1))
     actions = jax.random.uniform(jax.random.key(6), (2, env.num_envs, 4), minval=-1, maxval=1)
     stepped = jax.jit(jax.vmap(env.step))(states, actions)
     assert np.asarray(stepped.truncated[0]).all() and not np.asarray(stepped.truncated[1]).any()
     for i in range(2):
-        alone = step(jax.tree.map(lambda x, i=i: x[i], states), actions[i])
-        assert_same_state(alone, jax.tree.map(lambda x, i=i: x[i], stepped), f"instance {i}")
+        alone = step(take(states, i), actions[i])
+        assert_same_state(alone, take(stepped, i), f"instance {i}")
 
 
 def test_default_horizon_is_reference():
@@ -259,7 +263,9 @@ def test_convex_collider_slots_hold_every_candidate_pair_and_a_shortfall_is_repo
             [task], envs_per_task=2, seed=0, physics=mwjax.PhysicsConfig(ccd_pairs_per_env=slots)
         )
         step = jax.jit(lambda state, env=env: env.step(state, jnp.clip(expert(state.obs), -1.0, 1.0)))
-        state = env.reset(jax.random.key(0))
+        # A jitted reset: the eager one returns committed and uncommitted arrays mixed, for which
+        # `step` would compile a second time after its own (committed) output comes back.
+        state = jax.jit(env.reset)(jax.random.key(0))
         flags = np.zeros(env.num_envs, np.int32)
         for _ in range(80):  # the expert reaches the button and presses it down
             state = step(state)

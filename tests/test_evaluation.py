@@ -57,7 +57,9 @@ def test_reference_style_evaluation_matches_the_functional_one():
     assert mean_success == 1.0 and per_task == {"reach-v3": 1.0}
     assert len(returns["reach-v3"]) == 4 and mean_return == pytest.approx(np.mean(returns["reach-v3"]))
     assert agent.resets == 4 + 4  # the start, then each episode's end
-    functional = evaluator(core, policies.expert_policy(eval_core), 4)(None, jax.random.key(0))
+    # Jitted as it is meant to run: eagerly, each of its operations compiles a program of its own
+    # (7 s more on a 2-core CPU).
+    functional = jax.jit(evaluator(core, policies.expert_policy(eval_core), 4))(None, jax.random.key(0))
     np.testing.assert_allclose(returns["reach-v3"], np.asarray(functional.returns[0]), rtol=1e-5)
 
 

@@ -656,7 +656,12 @@ def restore_checkpoint(stem: str | Path, template: Any) -> tuple[Any, int, list[
     with np.load(f"{stem}.npz") as data:
         if len(data.files) != len(like):
             raise ValueError(f"{stem}.npz holds {len(data.files)} arrays, this run's learner {len(like)}")
-        leaves = [jax.device_put(data[f"arr_{i}"], t.sharding) for i, t in enumerate(like)]
+        # An uncommitted template leaf (a single-device run's) stays uncommitted: `train_chunk`
+        # compiled for the template would compile again for a carry that mixes the two.
+        leaves = [
+            jax.device_put(data[f"arr_{i}"], t.sharding) if t.committed else jnp.asarray(data[f"arr_{i}"])
+            for i, t in enumerate(like)
+        ]
     for saved, expected in zip(leaves, like, strict=True):
         if saved.shape != expected.shape:
             raise ValueError(f"{stem}.npz is another configuration's ({saved.shape} vs {expected.shape})")

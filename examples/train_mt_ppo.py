@@ -603,6 +603,18 @@ class Trainer:
         """Frames of one episode of the policy's mean action on each task (one env per task, a
         goal drawn from `key`, no autoreset), `(steps, tasks, size, size, 3)` uint8: the
         rollout and the captures run jitted on device, the images are drawn afterwards."""
+        # One env, renderer and program per setting, the parameters an argument: a second call
+        # (another policy's frames) compiles nothing.
+        programs = self.__dict__.setdefault("_frame_programs", {})
+        if (steps, size, camera) not in programs:
+            programs[steps, size, camera] = self._frames_program(steps, size, camera)
+        renderer, rollout = programs[steps, size, camera]
+        # Through the host: a data-parallel run's parameters are replicated over its devices, the
+        # frames' env lives on one.
+        return renderer.frames(rollout(jax.tree.map(np.asarray, params_and_norm), key))
+
+    def _frames_program(self, steps: int | None, size: int, camera: str) -> tuple[rendering.Renderer, Any]:
+        """`policy_frames`' renderer and its jitted `(params_and_norm, key) -> Capture`."""
         cfg = self.config
         env = mwjax.make(
             self.env.task_list,
@@ -615,19 +627,19 @@ class Trainer:
         renderer = rendering.Renderer(env, camera=camera, width=size, height=size)
         one_hot = jnp.asarray(env.task_one_hot())
 
-        def body(state: mwjax.State, _: None) -> tuple[mwjax.State, rendering.Capture]:
-            obs = jnp.concatenate([state.obs, one_hot], axis=-1)
-            state = env.step(state, self._mean_action(params_and_norm, obs, 1))
-            return state, renderer.capture(state)
-
         @jax.jit
-        def rollout(key: Array) -> rendering.Capture:
+        def rollout(params_and_norm: tuple[Params, Normalizers], key: Array) -> rendering.Capture:
+            def body(state: mwjax.State, _: None) -> tuple[mwjax.State, rendering.Capture]:
+                obs = jnp.concatenate([state.obs, one_hot], axis=-1)
+                state = env.step(state, self._mean_action(params_and_norm, obs, 1))
+                return state, renderer.capture(state)
+
             state = env.reset(key)
             _, captures = jax.lax.scan(body, state, None, length=steps or cfg.max_episode_steps)
             first = jax.tree.map(lambda x: x[None], renderer.capture(state))
             return jax.tree.map(lambda a, b: jnp.concatenate([a, b]), first, captures)
 
-        return renderer.frames(rollout(key))
+        return renderer, rollout
 
     @property
     def steps_per_update(self) -> int:

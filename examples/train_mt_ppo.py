@@ -246,6 +246,8 @@ class Trainer:
         self.n_tasks = len(self.env.task_list)
         self.obs_size = OBS_SIZE + self.n_tasks
         self.one_hot = jnp.asarray(local_env.task_one_hot())
+        # `policy_frames`' renderer and jitted rollout per (steps, size, camera), built on first use.
+        self._frame_programs: dict[tuple[int | None, int, str], tuple[rendering.Renderer, Any]] = {}
         per_task = self.rows_per_task * config.unroll
         if per_task % config.minibatches:
             where = "" if self.devices is None else " on each device"
@@ -605,10 +607,10 @@ class Trainer:
         rollout and the captures run jitted on device, the images are drawn afterwards."""
         # One env, renderer and program per setting, the parameters an argument: a second call
         # (another policy's frames) compiles nothing.
-        programs = self.__dict__.setdefault("_frame_programs", {})
-        if (steps, size, camera) not in programs:
-            programs[steps, size, camera] = self._frames_program(steps, size, camera)
-        renderer, rollout = programs[steps, size, camera]
+        setting = (steps, size, camera)
+        if setting not in self._frame_programs:
+            self._frame_programs[setting] = self._frames_program(steps, size, camera)
+        renderer, rollout = self._frame_programs[setting]
         # Through the host: a data-parallel run's parameters are replicated over its devices, the
         # frames' env lives on one.
         return renderer.frames(rollout(jax.tree.map(np.asarray, params_and_norm), key))

@@ -12,7 +12,7 @@ from __future__ import annotations
 import copy
 import dataclasses
 import functools
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from typing import TYPE_CHECKING, Any
 
 import jax
@@ -75,6 +75,22 @@ def staggered(state: State, max_episode_steps: int, key: Array) -> State:
     return dataclasses.replace(state, steps=offsets)
 
 
+def _placed_as_one(method: Callable[..., State]) -> Callable[..., State]:
+    """Called eagerly (outside a trace), a method's state comes back partly committed to the
+    device (the arrays the Warp calls make) and partly not; `jax.jit` compiles once per such mix,
+    so a jitted `step` fed an eagerly reset state would compile twice (once more for its own,
+    all-committed output). Eagerly, the whole state is put on that device; traced, unchanged."""
+
+    @functools.wraps(method)
+    def call(self: Env, *args: Any, **kwargs: Any) -> State:
+        state = method(self, *args, **kwargs)
+        if isinstance(state.obs, jax.core.Tracer):
+            return state
+        return jax.device_put(state, state.obs.sharding)
+
+    return call
+
+
 class Env:
     """A batched Meta-World task set. Build it with `mwjax.make` (or from an `EnvConfig`)."""
 
@@ -132,6 +148,7 @@ class Env:
     # ----------------------------------------------------------------------------------------
     # Public functional API
 
+    @_placed_as_one
     def reset(self, key: Array) -> State:
         """A fresh episode in every env, each from its own key. With `goal_sampling="on_reset"`
         (MT sets) every env draws one of its task's goal variants; with `"on_request"` (ML sets)
@@ -143,6 +160,7 @@ class Env:
             cursor, keys = self.goals.draw_cursor(keys)
         return self._start(order, cursor, keys)
 
+    @_placed_as_one
     def reset_with_variants(self, variants: Array, key: Array | None = None) -> State:
         """A fresh episode in every env on the given goal variants (`(num_envs,)` indices into
         `env.goal_variants[task]`), e.g. one episode per variant for evaluation."""
@@ -160,6 +178,7 @@ class Env:
         )
         return self._start(order, variants, keys)
 
+    @_placed_as_one
     def sample_goals(self, state: State) -> State:
         """Every env moves on to its next goal variant and starts a fresh episode (the reference's
         `sample_tasks` of ML envs: each env cycles through its own share of the variants in a
@@ -174,6 +193,7 @@ class Env:
         order = select_rows(wrapped, reshuffled, state.goal_order)
         return self._start(order, jnp.where(wrapped, 0, cursor), keys)
 
+    @_placed_as_one
     def reset_to(self, rand_vecs: Array, key: Array | None = None) -> State:
         """A fresh episode in every env with the given goal variants (`(num_envs, d)`, the
         reference's `rand_vec`, zero-padded to the widest task of the set)."""
@@ -204,6 +224,7 @@ class Env:
 
         return ShardedEnv(devices, config)
 
+    @_placed_as_one
     def restart(self, state: State, mask: Array | None = None) -> State:
         """Fresh episodes in the rows where `mask` (all by default), as an autoreset starts them:
         a new goal variant with `goal_sampling="on_reset"`, the same one with `"on_request"`."""
@@ -260,6 +281,7 @@ class Env:
         info["physics_overflow"] = state.info["physics_overflow"]
         return dataclasses.replace(state, obs=obs, reward=reward, info=info, constants=constants)
 
+    @_placed_as_one
     def step(self, state: State, action: Array) -> State:
         """One env step for the whole batch (5 physics steps), with rewards and autoreset.
 

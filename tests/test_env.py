@@ -328,6 +328,19 @@ def test_physics_overflow_is_reported_per_env_and_step(capfd):
     assert "overflow" not in capfd.readouterr().out
 
 
+def test_an_eagerly_reset_state_feeds_a_jitted_step_that_compiles_once():
+    """Eagerly, the Warp calls' outputs come back committed to the device and the rest not; a
+    jitted step would compile for that mix and again for its own output. The state is placed as
+    one, so the step compiles once."""
+    env = mwjax.make(["reach-v3"], envs_per_task=1)
+    state = env.reset(jax.random.key(0))
+    assert {x.committed for x in jax.tree.leaves(state)} == {True}
+    step = jax.jit(env.step)
+    for _ in range(2):
+        state = step(state, jnp.zeros((1, 4)))
+    assert step._cache_size() == 1
+
+
 def test_the_step_program_holds_no_python_callback_so_jax_can_cache_it():
     """JAX writes no program with a Python host callback to its persistent cache, so each process
     would compile such a step afresh; the overflow warning goes through a named FFI target."""

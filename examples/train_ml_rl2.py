@@ -179,6 +179,11 @@ def _dense_init(key: Array, fan_in: int, fan_out: int, scale: float) -> tuple[Ar
     return ppo._orthogonal(key, (fan_in, fan_out), scale), jnp.zeros(fan_out)
 
 
+def _per_task(x: Array, tasks: int) -> Array:
+    """`(unroll, num_envs)` as `(unroll, tasks, envs per task)`: the envs lie task by task."""
+    return x.reshape(x.shape[0], tasks, -1)
+
+
 def _log_prob(mean: Array, log_std: Array, action: Array) -> Array:
     """`ppo._log_prob` (which takes per-task batches) for one shared `log_std`."""
     flat = ppo._log_prob(mean.reshape(1, -1, 4), log_std[None], action.reshape(1, -1, 4))
@@ -412,7 +417,7 @@ class Trainer:
         """`(unroll, envs)` advantages to mean 0 and std 1, per train task (envs lie task by
         task) with `per_task_advantages`, else over all."""
         axes = (0, 2) if self.config.per_task_advantages else (0, 1, 2)
-        a = advantages.reshape(advantages.shape[0], self.n_tasks, -1)
+        a = _per_task(advantages, self.n_tasks)
         a = (a - a.mean(axis=axes, keepdims=True)) / (a.std(axis=axes, keepdims=True) + 1e-8)
         return a.reshape(advantages.shape)
 
@@ -442,7 +447,7 @@ class Trainer:
             return jnp.where(end, 0.0, running), running
 
         running, returns = jax.lax.scan(accumulate, carry.running_return, (batch.reward, batch.trial_end))
-        by_task = returns.reshape(returns.shape[0], self.n_tasks, -1).transpose(0, 2, 1)  # (unroll, E, tasks)
+        by_task = _per_task(returns, self.n_tasks).transpose(0, 2, 1)  # (unroll, E, tasks)
         norm = carry.norm._replace(
             returns=carry.norm.returns.merge(returns[..., None], (0, 1)),
             task_returns=carry.norm.task_returns.merge(by_task, (0, 1)),
@@ -469,10 +474,9 @@ class Trainer:
             epoch, (carry.params, carry.opt_state), jax.random.split(epoch_key, cfg.epochs)
         )
         carry = carry._replace(params=params, opt_state=opt_state, norm=norm, running_return=running, key=key)
-        per_task = (self.config.unroll, self.n_tasks, self.config.envs_per_task)
         metrics = Metrics(
-            ended.reshape(per_task).sum(axis=(0, 2)),
-            ended_success.reshape(per_task).sum(axis=(0, 2)),
+            _per_task(ended, self.n_tasks).sum(axis=(0, 2)),
+            _per_task(ended_success, self.n_tasks).sum(axis=(0, 2)),
             loss.mean(),
             kl.mean(),
         )

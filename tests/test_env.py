@@ -263,8 +263,7 @@ def test_convex_collider_slots_hold_every_candidate_pair_and_a_shortfall_is_repo
             [task], envs_per_task=2, seed=0, physics=mwjax.PhysicsConfig(ccd_pairs_per_env=slots)
         )
         step = jax.jit(lambda state, env=env: env.step(state, jnp.clip(expert(state.obs), -1.0, 1.0)))
-        # A jitted reset: the eager one returns committed and uncommitted arrays mixed, for which
-        # `step` would compile a second time after its own (committed) output comes back.
+        # Jitted: eagerly, each of the reset's operations would compile a program of its own.
         state = jax.jit(env.reset)(jax.random.key(0))
         flags = np.zeros(env.num_envs, np.int32)
         for _ in range(80):  # the expert reaches the button and presses it down

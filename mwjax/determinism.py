@@ -35,7 +35,6 @@ LOOP_RECORDS = {"mujoco.mjx.third_party.mujoco_warp._src.smooth": 8}
 # grows with the contact buffer, i.e. with the batch. A bound on the whole solver module would size
 # every solver kernel's record buffers by it, so the mode gives this kernel a module of its own.
 CONE_HESSIAN = "_update_gradient_JTCJ_dense"
-_SOLVER = "mujoco.mjx.third_party.mujoco_warp._src.solver"
 
 
 def enable() -> None:
@@ -87,7 +86,7 @@ def reserve_cone_hessian(naconmax: int, nv: int) -> None:
     gpus = [warp.get_device(f"cuda:{i}") for i in range(warp.get_cuda_device_count())]
     bound = max((cone_hessian_records(naconmax, nv, gpu.sm_count) for gpu in gpus), default=1)
     kernel = getattr(solver, CONE_HESSIAN)
-    if kernel.module.name != _SOLVER and kernel.module.options["deterministic_max_records"] >= bound:
+    if kernel.module.name != solver.__name__ and kernel.module.options["deterministic_max_records"] >= bound:
         return
     # The solver module's options (its mode included) come along: a re-homed kernel's are a copy.
     options = dict(kernel.module.options, deterministic_max_records=bound)

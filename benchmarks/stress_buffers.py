@@ -135,22 +135,24 @@ def main() -> None:
     env = mwjax.make(tasks, envs_per_task=args.envs_per_task, seed=args.seed)
     act = stress_actions(env)
 
-    def run(policy: jax.Array, key: jax.Array) -> tuple[jax.Array, jax.Array]:
-        """One batch of whole episodes; per env, the flags raised and the most rows needed."""
+    def run(policy: jax.Array, key: jax.Array) -> tuple[jax.Array, jax.Array, jax.Array]:
+        """One batch of whole episodes; per env, the flags raised, the most rows needed and the
+        steps whose physics diverged and was reset (`info["physics_reset"]`)."""
         reset_key, key = jax.random.split(key)
         keys = jax.random.split(key, 5)
         state = env.reset(reset_key)
 
         def body(carry: tuple, t: jax.Array) -> tuple:
-            state, flags, rows = carry
+            state, flags, rows, resets = carry
             state = env.step(state, act(policy, state.obs, t, keys))
             flags = flags | state.info["physics_overflow"]
             rows = jnp.maximum(rows, env.physics.constraint_rows_needed(state.physics))
-            return (state, flags, rows), None
+            resets = resets + state.info["physics_reset"]
+            return (state, flags, rows, resets), None
 
         zeros = jnp.zeros(env.num_envs, jnp.int32)
-        (_, flags, rows), _ = jax.lax.scan(body, (state, zeros, zeros), jnp.arange(args.steps))
-        return flags, rows
+        (_, flags, rows, resets), _ = jax.lax.scan(body, (state, zeros, zeros, zeros), jnp.arange(args.steps))
+        return flags, rows, resets
 
     compiled = jax.jit(run).lower(jnp.int32(0), jax.random.key(0)).compile()
     print(
@@ -160,18 +162,23 @@ def main() -> None:
     for i, name in enumerate(args.policies):
         t0 = time.perf_counter()
         key = jax.random.fold_in(jax.random.key(args.seed), i)
-        flags, rows = jax.block_until_ready(compiled(jnp.int32(POLICIES.index(name)), key))
-        flags, rows = np.asarray(flags), np.asarray(rows)
+        flags, rows, resets = map(
+            np.asarray, jax.block_until_ready(compiled(jnp.int32(POLICIES.index(name)), key))
+        )
         for task in env.task_list:
             sl = env.task_rows(task)
             table.setdefault(task, {})[name] = {
                 "flags": flag_names(int(np.bitwise_or.reduce(flags[sl]))),
                 "dropped_envs": int(np.count_nonzero(flags[sl] & int(DROPPED))),
                 "peak_rows": int(rows[sl].max()),
+                "reset_envs": int(np.count_nonzero(resets[sl])),
+                "resets": int(resets[sl].sum()),
             }
         dropped = sum(table[t][name]["dropped_envs"] for t in env.task_list)
+        reset = sum(table[t][name]["reset_envs"] for t in env.task_list)
         print(
-            f"  {name:<13} {time.perf_counter() - t0:6.1f} s, envs that dropped something: {dropped}",
+            f"  {name:<13} {time.perf_counter() - t0:6.1f} s, envs that dropped something: {dropped}, "
+            f"envs whose physics diverged and was reset: {reset}",
             flush=True,
         )
         dropped_tasks = report(env, table, args, args.policies[: i + 1])
@@ -214,19 +221,26 @@ def report(env: mwjax.Env, table: dict, args: argparse.Namespace, run: list[str]
         f"`{result['command']}`, commit {result['commit'][:7]}, {result['device']}, {result['date']}. "
         f"Default physics; {args.steps}-step episodes from reset; per task and policy: the envs that "
         "dropped a contact, constraint row or collider pair, all flags raised, and the most "
-        "constraint rows one env needed at once (allocated: the scene's `constraint_rows`).",
+        "constraint rows one env needed at once (allocated: the scene's `constraint_rows`); then the "
+        "envs whose physics diverged and was reset (`info['physics_reset']`, MuJoCo C's automatic reset).",
         "",
-        "| task | " + " | ".join(f"{p}: dropped / flags / peak rows" for p in run) + " | allocated |",
+        "| task | " + " | ".join(f"{p}: dropped / flags / peak rows / reset" for p in run) + " | allocated |",
         "| --- | " + " | ".join("---" for _ in run) + " | ---: |",
     ]
     for task in env.task_list:
         cells = [
-            f"{c['dropped_envs']} / {c['flags']} / {c['peak_rows']}" for c in (table[task][p] for p in run)
+            f"{c['dropped_envs']} / {c['flags']} / {c['peak_rows']} / {c['reset_envs']}"
+            for c in (table[task][p] for p in run)
         ]
         scene = next(s for s in scenes.values() if task in s["tasks"])
         lines.append(f"| {task} | " + " | ".join(cells) + f" | {scene['allocated_rows']} |")
     dropped = [t for t in env.task_list if any(table[t][p]["dropped_envs"] for p in run)]
-    lines += ["", f"Tasks where any env dropped something: {', '.join(dropped) or 'none'}."]
+    diverged = [t for t in env.task_list if any(table[t][p]["reset_envs"] for p in run)]
+    lines += [
+        "",
+        f"Tasks where any env dropped something: {', '.join(dropped) or 'none'}.",
+        f"Tasks where any env's physics diverged and was reset: {', '.join(diverged) or 'none'}.",
+    ]
     out.with_suffix(".md").write_text("\n".join(lines) + "\n")
     print("\n".join(lines))
     print(f"-> {out} (.md)")

@@ -166,6 +166,7 @@ class Carry(NamedTuple):
 class Metrics(NamedTuple):
     episodes: Array  # per train task
     successes: Array
+    physics_resets: Array  # per train task, env steps whose physics diverged and was reset
     loss: Array
     approx_kl: Array
 
@@ -333,10 +334,10 @@ class Trainer:
 
     # -- one PPO update -------------------------------------------------------------------------
 
-    def rollout(self, carry: Carry) -> tuple[Carry, Transition, Array, Array, Array]:
+    def rollout(self, carry: Carry) -> tuple[Carry, Transition, Array, tuple[Array, Array, Array]]:
         """`unroll` steps of every env: the carry after them, the transitions, the hidden state
-        the chunk started from, and per-step `(unroll, envs)` full-length episodes ended and
-        those of them that succeeded (at any step)."""
+        the chunk started from, and per-step `(unroll, envs)` full-length episodes ended, those
+        of them that succeeded (at any step), and physics resets (`info["physics_reset"]`)."""
         params, env = carry.params, self.env
 
         def step(c: Carry, key: Array) -> tuple[Carry, tuple[Transition, Array, Array]]:
@@ -372,12 +373,12 @@ class Trainer:
                 episode_success=success & ~episode_end,
             )
             # Training success counts full-length episodes only; cut ones had less time.
-            return c, (transition, full_length, full_length & success)
+            return c, (transition, (full_length, full_length & success, stepped.info["physics_reset"]))
 
         key, rollout_key = jax.random.split(carry.key)
         keys = jax.random.split(rollout_key, self.config.unroll)
-        end, (batch, ended, ended_success) = jax.lax.scan(step, carry, keys)
-        return end._replace(key=key), batch, carry.hidden, ended, ended_success
+        end, (batch, counts) = jax.lax.scan(step, carry, keys)
+        return end._replace(key=key), batch, carry.hidden, counts
 
     def _next_episode(self, state: mwjax.State, restart: Array, trial_end: Array) -> mwjax.State:
         """Fresh episodes in the `restart` rows, on each env's next goal where its trial ended
@@ -438,7 +439,7 @@ class Trainer:
 
     def _update(self, carry: Carry, _: None) -> tuple[Carry, Metrics]:
         cfg = self.config
-        carry, batch, h0, ended, ended_success = self.rollout(carry)
+        carry, batch, h0, counts = self.rollout(carry)
 
         # Rewards divided by the running std of the discounted return within a trial.
         def accumulate(running: Array, xs: tuple[Array, Array]) -> tuple[Array, Array]:
@@ -474,18 +475,18 @@ class Trainer:
             epoch, (carry.params, carry.opt_state), jax.random.split(epoch_key, cfg.epochs)
         )
         carry = carry._replace(params=params, opt_state=opt_state, norm=norm, running_return=running, key=key)
-        metrics = Metrics(
-            _per_task(ended, self.n_tasks).sum(axis=(0, 2)),
-            _per_task(ended_success, self.n_tasks).sum(axis=(0, 2)),
-            loss.mean(),
-            kl.mean(),
-        )
+        per_task = (_per_task(x, self.n_tasks).sum(axis=(0, 2)) for x in counts)
+        metrics = Metrics(*per_task, loss.mean(), kl.mean())
         return carry, metrics
 
     def _train_chunk(self, carry: Carry, updates: int) -> tuple[Carry, Metrics]:
         carry, metrics = jax.lax.scan(self._update, carry, None, length=updates)
         return carry, Metrics(
-            metrics.episodes.sum(0), metrics.successes.sum(0), metrics.loss.mean(), metrics.approx_kl.mean()
+            metrics.episodes.sum(0),
+            metrics.successes.sum(0),
+            metrics.physics_resets.sum(0),
+            metrics.loss.mean(),
+            metrics.approx_kl.mean(),
         )
 
     @property

@@ -168,6 +168,7 @@ class Carry(NamedTuple):
 class Metrics(NamedTuple):
     episodes: Array  # per task, episodes finished
     successes: Array  # per task, of those, ones that succeeded
+    physics_resets: Array  # per task, env steps whose physics diverged and was reset (`mwjax.physics`)
     loss: Array
     approx_kl: Array
 
@@ -413,21 +414,22 @@ class Trainer:
             # Training success counts full-length episodes only; cut ones had less time.
             ended = full_length & success
             next_c = (env_state, success & ~truncated, jnp.where(truncated, -1, first_cut))
-            return next_c, (transition, full_length, ended)
+            return next_c, (transition, full_length, ended, env_state.info["physics_reset"])
 
         key, rollout_key = jax.random.split(carry.key)
         if self.axis is not None:  # each device explores with its own noise
             rollout_key = jax.random.fold_in(rollout_key, jax.lax.axis_index(self.axis))
         keys = jax.random.split(rollout_key, self.config.unroll)
-        (env_state, episode_success, first_cut), (batch, ended, ended_success) = jax.lax.scan(
+        (env_state, episode_success, first_cut), (batch, ended, ended_success, resets) = jax.lax.scan(
             step, (carry.env_state, carry.episode_success, carry.first_cut), keys
         )
         episodes = self._psum(self._per_task(ended).sum(axis=(0, 2)))
         successes = self._psum(self._per_task(ended_success).sum(axis=(0, 2)))
+        resets = self._psum(self._per_task(resets).sum(axis=(0, 2)))
         carry = carry._replace(
             env_state=env_state, episode_success=episode_success, first_cut=first_cut, key=key
         )
-        return carry, batch, episodes, successes
+        return carry, batch, (episodes, successes, resets)
 
     def _scaled_rewards(self, carry: Carry, batch: Transition) -> tuple[Carry, Array]:
         """Rewards divided by each task's running std of the discounted return."""
@@ -482,9 +484,9 @@ class Trainer:
         return loss, (mb.log_prob - log_prob).mean()
 
     def _update(self, carry: Carry, _: None) -> tuple[Carry, Metrics]:
-        carry, batch, episodes, successes = self._rollout(carry)
+        carry, batch, counts = self._rollout(carry)
         carry, loss, kl = self._learn(carry, batch)
-        return carry, Metrics(episodes, successes, loss, kl)
+        return carry, Metrics(*counts, loss, kl)
 
     def _learn(self, carry: Carry, batch: Transition) -> tuple[Carry, Array, Array]:
         """The learner's half of an update: returns, advantages and the epochs of minibatches."""
@@ -538,7 +540,11 @@ class Trainer:
     def _train_chunk(self, carry: Carry, updates: int) -> tuple[Carry, Metrics]:
         carry, metrics = jax.lax.scan(self._update, carry, None, length=updates)
         return carry, Metrics(
-            metrics.episodes.sum(0), metrics.successes.sum(0), metrics.loss.mean(), metrics.approx_kl.mean()
+            metrics.episodes.sum(0),
+            metrics.successes.sum(0),
+            metrics.physics_resets.sum(0),
+            metrics.loss.mean(),
+            metrics.approx_kl.mean(),
         )
 
     def rollout_seconds(self, carry: Carry, updates: int) -> float:
@@ -548,7 +554,7 @@ class Trainer:
 
         def rollouts(c: Carry) -> tuple[Carry, Array]:
             def one(c: Carry, _: None) -> tuple[Carry, Array]:
-                c, _, episodes, _ = self._rollout(c)
+                c, _, (episodes, _, _) = self._rollout(c)
                 return c, episodes.sum()
 
             return jax.lax.scan(one, c, None, length=updates)
@@ -853,6 +859,12 @@ def _chunks(
         with progress.phase(first) if not compiled else contextlib.nullcontext():
             loop.carry, metrics = train_chunk(loop.carry, n)
             metrics = jax.device_get(metrics)
+        if not np.isfinite(metrics.loss).all():
+            # Before the caller saves a checkpoint: the last one keeps the learner before this chunk.
+            raise FloatingPointError(
+                f"training diverged: the loss of updates {loop.updates + 1}-{loop.updates + n} is not "
+                f"finite; stopped with the learner of update {loop.updates} (its checkpoint, if any, is kept)"
+            )
         loop.chunk_s = time.perf_counter() - t0 if compiled else 0.0
         loop.n, loop.updates = n, loop.updates + n
         compiled = True
@@ -868,6 +880,10 @@ def _row(metrics: Any, updates: int, trainer: Any, wall_s: float) -> dict:
         "wall_s": wall_s,
         "train_success": float(rates.mean()) if metrics.episodes.all() else None,
         "train_success_per_task": dict(zip(trainer.env.task_list, rates.tolist(), strict=True)),
+        # Envs whose physics diverged and was reset, by task (`info["physics_reset"]`); rare.
+        "physics_resets": {
+            t: int(n) for t, n in zip(trainer.env.task_list, metrics.physics_resets, strict=True) if n
+        },
         "loss": float(metrics.loss),
         "approx_kl": float(metrics.approx_kl),
     }
@@ -882,9 +898,11 @@ def _progress(row: dict, budget: float, episodes: np.ndarray, label: str = "") -
         f"{t.removesuffix('-v3')}={r:.2f}" if e else f"{t.removesuffix('-v3')}=n/a"
         for (t, r), e in zip(row["train_success_per_task"].items(), episodes, strict=True)
     )
+    resets = ", ".join(f"{t.removesuffix('-v3')}={n}" for t, n in row["physics_resets"].items())
     print(
         f"{label}[{bar}] {row['wall_s']:6.0f}s  {row['env_steps'] / 1e6:8.1f}M steps  "
-        f"update {row['updates']}  loss {row['loss']:.3f}  success {mean} | {per_task}",
+        f"update {row['updates']}  loss {row['loss']:.3f}  success {mean}"
+        f"{f'  physics resets: {resets}' if resets else ''} | {per_task}",
         flush=True,
     )
 

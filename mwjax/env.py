@@ -279,6 +279,7 @@ class Env:
         )
         info["invalid_action"] = state.info["invalid_action"]
         info["physics_overflow"] = state.info["physics_overflow"]
+        info["physics_reset"] = state.info["physics_reset"]
         return dataclasses.replace(state, obs=obs, reward=reward, info=info, constants=constants)
 
     @_placed_as_one
@@ -289,8 +290,10 @@ class Env:
         reward terms and `success`, `state.info` holds per env: `episode_return` and
         `episode_length` (the episode's return and steps so far, including this step; at an
         autoreset, the finished episode's), `invalid_action` (this step's action had NaN or inf
-        and was replaced by zeros), `physics_overflow` (Warp's `OverflowType` flags of this step)
-        and `final_obs` (the last observation of an episode that ended at this step)."""
+        and was replaced by zeros), `physics_overflow` (Warp's `OverflowType` flags of this step),
+        `physics_reset` (the physics diverged in this step and was reset to the model's defaults,
+        as MuJoCo C's automatic reset does; `PhysicsInstabilityWarning`) and `final_obs` (the last
+        observation of an episode that ended at this step)."""
         action = check_action(action, self.num_envs)
         valid = jnp.all(jnp.isfinite(action), axis=-1)
         action = jnp.where(valid[:, None], action, 0.0)
@@ -300,6 +303,7 @@ class Env:
         obs, reward, info, constants = self._observe_and_reward(kin, state, action)
         info["invalid_action"] = ~valid
         info["physics_overflow"] = self.physics.overflow(datas)
+        info["physics_reset"] = self.physics.resets(datas)
         steps = state.steps + 1
         episode_return = state.episode_return + reward
         info["episode_return"] = episode_return
@@ -400,6 +404,7 @@ class Env:
         info["success"] = jnp.zeros(self.num_envs, bool)
         info["invalid_action"] = jnp.zeros(self.num_envs, bool)
         info["physics_overflow"] = jnp.zeros(self.num_envs, jnp.int32)
+        info["physics_reset"] = jnp.zeros(self.num_envs, bool)
         info["episode_return"] = zeros
         info["episode_length"] = jnp.zeros(self.num_envs, jnp.int32)
         info["final_obs"] = obs

@@ -69,13 +69,20 @@ class PhysicsOverflowWarning(RuntimeWarning):
     reference's from that step on (`info["physics_overflow"]` says which envs and when)."""
 
 
+class PhysicsInstabilityWarning(RuntimeWarning):
+    """Some env's physics diverged (a NaN, or a value past MuJoCo's `mjMAXVAL`, in qpos, qvel or
+    qacc) and was reset to the model's defaults, as MuJoCo C's automatic reset does
+    (`info["physics_reset"]` says which envs and when)."""
+
+
 _OVERFLOW_TARGET = "mwjax_physics_overflow"
+_RESET_TARGET = "mwjax_physics_reset"
 # (scene, buffer, size) already warned about: one warning each per process.
 _warned: set[tuple[str, OverflowType, str]] = set()
 
 
 def _warn_dropped(flags: np.ndarray, attrs: dict[str, str]) -> None:
-    """`PhysicsOverflowWarning`s for a step's per-scene flags (`Physics._warn_on_overflow`)."""
+    """`PhysicsOverflowWarning`s for a step's per-scene flags (`Physics._warn_on_host`)."""
     scenes = attrs["scenes"].split(",")
     # Under an outer vmap (e.g. over seeds) the flags arrive with leading batch axes.
     flags = np.bitwise_or.reduce(flags.reshape(-1, len(scenes)), axis=0)
@@ -97,6 +104,29 @@ def _warn_dropped(flags: np.ndarray, attrs: dict[str, str]) -> None:
 
 
 host_call.register(_OVERFLOW_TARGET, _warn_dropped)
+
+_reset_warned: set[str] = set()
+
+
+def _warn_reset(resets: np.ndarray, attrs: dict[str, str]) -> None:
+    """`PhysicsInstabilityWarning`s for a step's per-scene reset counts, once per scene."""
+    scenes = attrs["scenes"].split(",")
+    resets = resets.reshape(-1, len(scenes)).sum(axis=0)
+    for scene, count in zip(scenes, resets, strict=True):
+        if not count or scene in _reset_warned:
+            continue
+        _reset_warned.add(scene)
+        warnings.warn_explicit(
+            f"The physics of {count} env(s) of scene {scene} diverged (NaN or |x| > 1e10 in qpos, "
+            f"qvel or qacc) and was reset to the model's defaults mid-episode, as MuJoCo C does; "
+            f"info['physics_reset'] flags the envs.",
+            PhysicsInstabilityWarning,
+            filename="mwjax.physics",
+            lineno=0,
+        )
+
+
+host_call.register(_RESET_TARGET, _warn_reset)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -194,12 +224,16 @@ class PhysicsState:
     # Constraint rows the last step needed (the most over its substeps), allocated or not: what
     # sizing `PhysicsConfig.constraints_per_env` needs (`Physics.constraint_rows_needed`).
     rows_needed: jax.Array
+    # Per env: whether the last step found its physics diverged and reset it (`Physics.step`).
+    reset: jax.Array
 
     def replace(self, **changes: jax.Array) -> PhysicsState:
         return dataclasses.replace(self, **changes)
 
 
-_FIELDS = tuple(f.name for f in dataclasses.fields(PhysicsState) if f.name not in ("overflow", "rows_needed"))
+_FIELDS = tuple(
+    f.name for f in dataclasses.fields(PhysicsState) if f.name not in ("overflow", "rows_needed", "reset")
+)
 # Fields no Meta-World scene has entries in (no activations, delays, plugins or user data): a
 # state carries None for them rather than zero-size arrays (`mwjax.warp_empty_args` says why);
 # the data rebuilt from `mjx.make_data` at each step has them anyway.
@@ -249,6 +283,7 @@ class Physics:
         # of its NumPy fields (meshes included) while tracing.
         self._substep = tuple(jax.vmap(functools.partial(_step, g.device_model)) for g in groups)
         self._kinematics = tuple(jax.vmap(functools.partial(_kinematics, g.device_model)) for g in groups)
+        self._defaults = tuple(_reset_values(g.model) for g in groups)
         # Every step rebuilds each scene's whole data from `mjx.make_data`; traced afresh at each
         # of MT50's ~100 call sites it dominated the step's lowering. Jitted, it is traced once
         # per scene (it makes no Warp call, so sharing its trace shares no captured graph).
@@ -314,7 +349,7 @@ class Physics:
             self.step_group(g, state.replace(overflow=jnp.zeros_like(state.overflow)))
             for g, state in enumerate(states)
         )
-        self._warn_on_overflow(stepped)
+        self._warn_on_host(stepped)
         return stepped
 
     def step_group(self, g: int, state: PhysicsState, fresh_poses: bool = True) -> PhysicsState:
@@ -330,35 +365,56 @@ class Physics:
         # at every substep, and Warp captures a graph (with its scratch) per call site and set of
         # buffer addresses, so a site needs one graph instead of one per substep; XLA also
         # compiles one body instead of five (docs/performance.md).
+        # MuJoCo C checks qpos and qvel before each step and qacc after its forward pass, and
+        # resets a diverged state to the model's defaults (`mj_checkPos/Vel/Acc`, its automatic
+        # reset); MJX-Warp checks nothing, and a NaN would spread through a learner's statistics.
+        # Here the state is checked before the env step's substeps (as C: it steps on from the
+        # reset) and after them: a divergence inside the env step resets at its end, not at the
+        # substep where it happened (C then integrates the remaining substeps from the reset),
+        # and never shows as a NaN (C's next `mj_step` would find it). Selects, not a `lax.cond`
+        # per substep: a conditional costs the GPU a host round trip.
         def substep(_: int, carry: tuple[mjx.Data, jax.Array]) -> tuple[mjx.Data, jax.Array]:
             data, rows = carry
             data = step(data)
             return data, jnp.maximum(rows, data._impl.nefc)
 
+        data = self.data(g, state)
+        bad_input = _diverged(data.qpos, data.qvel)
+        data = _reset_rows(self._defaults[g], data, bad_input)
         data, rows = jax.lax.fori_loop(
-            0, self.config.substeps, substep, (self.data(g, state), jnp.zeros_like(state.rows_needed))
+            0, self.config.substeps, substep, (data, jnp.zeros_like(state.rows_needed))
         )
-        return _carried(self._kinematics[g](data) if fresh_poses else data, rows)
+        bad = _diverged(data.qpos, data.qvel, data.qacc)
+        data = _reset_rows(self._defaults[g], data, bad)
+        diverged = bad_input | bad
+        return _carried(self._kinematics[g](data) if fresh_poses else data, rows, diverged)
 
     def constraint_rows_needed(self, states: tuple[PhysicsState, ...]) -> jax.Array:
         """Per env (rows in batch order), the constraint rows the last `step` needed at its peak,
         whether or not `PhysicsConfig.constraints_per_env` allocated that many."""
         return jnp.concatenate([state.rows_needed for state in states])
 
-    def _warn_on_overflow(self, states: tuple[PhysicsState, ...]) -> None:
-        # Warp's own warning is a `printf` per world and substep from inside its kernels (turned
-        # off in `_without_console_warnings`); this is one call to the host, made only in a step
-        # where some env dropped something, through a named FFI target so that the step stays
-        # in JAX's persistent cache (`mwjax.host_call`).
+    def _warn_on_host(self, states: tuple[PhysicsState, ...]) -> None:
+        # Warp's own overflow warning is a `printf` per world and substep from inside its kernels
+        # (turned off in `_without_console_warnings`); these are calls to the host, made only in
+        # a step where some env dropped something or was reset (one conditional for both: each
+        # costs the GPU a host round trip), through named FFI targets so that the step stays in
+        # JAX's persistent cache (`mwjax.host_call`).
         flags = jnp.stack([jax.lax.reduce(s.overflow, np.int32(0), jax.lax.bitwise_or, (0,)) for s in states])
-        dropped = (flags & int(DROPPED)) != 0
+        resets = jnp.stack([s.reset.sum(dtype=jnp.int32) for s in states])
         sizes = self._buffer_sizes
 
-        def warn(f: jax.Array, _: jax.Array) -> jax.Array:
-            host_call.call(_OVERFLOW_TARGET, f, **sizes)
-            return f
+        def warn(fr: tuple[jax.Array, jax.Array], _: jax.Array) -> tuple[jax.Array, jax.Array]:
+            host_call.call(_OVERFLOW_TARGET, fr[0], **sizes)
+            host_call.call(_RESET_TARGET, fr[1], scenes=sizes["scenes"])
+            return fr
 
-        cond_any(dropped, warn, lambda f, _: f, flags)
+        cond_any(((flags & int(DROPPED)) != 0) | (resets > 0), warn, lambda fr, _: fr, (flags, resets))
+
+    def resets(self, states: tuple[PhysicsState, ...]) -> jax.Array:
+        """Per env (rows in batch order), whether the last `step` found its physics diverged and
+        reset it to the model's defaults, as MuJoCo C does (`PhysicsInstabilityWarning`)."""
+        return jnp.concatenate([state.reset for state in states])
 
     @functools.cached_property
     def _buffer_sizes(self) -> dict[str, str]:
@@ -380,7 +436,9 @@ class Physics:
     def kinematics(self, states: tuple[PhysicsState, ...]) -> tuple[PhysicsState, ...]:
         """The poses of `states` computed from their qpos (and mocap bodies)."""
         return tuple(
-            merge_rows(lambda s, g=g: _carried(self._kinematics[g](self.data(g, s)), s.rows_needed))(state)
+            merge_rows(lambda s, g=g: _carried(self._kinematics[g](self.data(g, s)), s.rows_needed, s.reset))(
+                state
+            )
             for g, state in enumerate(states)
         )
 
@@ -428,7 +486,43 @@ def _kinematics(model: mjx.Model, data: mjx.Data) -> mjx.Data:
     return mjx.kinematics(warp_empty_args.traced(model), data)
 
 
-def _carried(data: mjx.Data, rows_needed: jax.Array | None = None) -> PhysicsState:
+def _diverged(*arrays: jax.Array) -> jax.Array:
+    """Per row, whether any entry is NaN or beyond MuJoCo's `mjMAXVAL` (C's `mju_isBad`)."""
+    return jnp.any(jnp.stack([jnp.any(~(jnp.abs(a) <= mujoco.mjMAXVAL), axis=-1) for a in arrays]), axis=0)
+
+
+def _reset_values(model: mujoco.MjModel) -> dict[str, np.ndarray]:
+    """What `mj_resetData` sets that the next step reads: qpos0, eq_active0 and the hand's mocap
+    pose (mocap 0) from its body. mwjax's other mocap bodies are the reference's fixed bodies
+    that a reset moves by editing `model.body_pos`, which C's reset keeps: they stay put."""
+    hand = int(np.flatnonzero(model.body_mocapid == 0)[0])
+    return {
+        "qpos": model.qpos0.astype(np.float32),
+        "eq_active": model.eq_active0.astype(bool),
+        "hand_pos": model.body_pos[hand].astype(np.float32),
+        "hand_quat": model.body_quat[hand].astype(np.float32),
+    }
+
+
+def _reset_rows(defaults: dict[str, np.ndarray], data: mjx.Data, rows: jax.Array) -> mjx.Data:
+    """`data` with the marked rows as `mj_resetData` leaves them (zero velocities, controls,
+    applied forces, warm start and time)."""
+
+    def where(value: jax.Array | np.ndarray, x: jax.Array) -> jax.Array:
+        return jnp.where(rows.reshape(-1, *[1] * (x.ndim - 1)), jnp.asarray(value, x.dtype), x)
+
+    zeroed = ("time", "qvel", "qacc_warmstart", "ctrl", "qfrc_applied", "xfrc_applied", "cvel", "cdof_dot")
+    changes = {name: where(0, getattr(data, name)) for name in zeroed}
+    changes["qpos"] = where(defaults["qpos"], data.qpos)
+    changes["eq_active"] = where(defaults["eq_active"], data.eq_active)
+    changes["mocap_pos"] = data.mocap_pos.at[:, 0].set(where(defaults["hand_pos"], data.mocap_pos[:, 0]))
+    changes["mocap_quat"] = data.mocap_quat.at[:, 0].set(where(defaults["hand_quat"], data.mocap_quat[:, 0]))
+    return data.replace(**changes)
+
+
+def _carried(
+    data: mjx.Data, rows_needed: jax.Array | None = None, reset: jax.Array | None = None
+) -> PhysicsState:
     # MJX has no public accessor for Warp's overflow flags and row counts, hence the private field.
     fields = {name: getattr(data, name) for name in _FIELDS}
     for name in _EMPTY_IN_METAWORLD:
@@ -438,6 +532,7 @@ def _carried(data: mjx.Data, rows_needed: jax.Array | None = None) -> PhysicsSta
         **fields,
         overflow=data._impl.overflow,
         rows_needed=data._impl.nefc if rows_needed is None else rows_needed,
+        reset=jnp.zeros(data.qpos.shape[0], bool) if reset is None else reset,
     )
 
 

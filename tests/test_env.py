@@ -22,7 +22,7 @@ from mwjax import benchmarks, policies
 from mwjax.benchmarks import MT10
 from mwjax.env import staggered
 from mwjax.models import MODELS_DIR, constraint_rows, load_scene, scene_names
-from mwjax.physics import DROPPED, PhysicsOverflowWarning, convex_candidates
+from mwjax.physics import DROPPED, PhysicsInstabilityWarning, PhysicsOverflowWarning, convex_candidates
 from mwjax.tasks import TASKS as TASKS_REGISTRY
 
 TASKS = ["reach-v3", "drawer-open-v3", "drawer-close-v3"]  # two share a scene
@@ -325,6 +325,66 @@ def test_physics_overflow_is_reported_per_env_and_step(capfd):
             assert not overflow
             assert np.all((needed >= 6) & (needed <= allocated))
     assert "overflow" not in capfd.readouterr().out
+
+
+def test_diverged_physics_is_reset_as_mujoco_c_resets_it(env, compiled, episode, tmp_path, monkeypatch):
+    """An env whose qvel holds a NaN, and one whose qpos holds a value past `mjMAXVAL`, are reset
+    to the model's defaults as MuJoCo C's `mj_step` resets them (its automatic reset, counted
+    in `mjWARN_BADQVEL`/`mjWARN_BADQPOS`), flagged in `info["physics_reset"]` with one
+    `PhysicsInstabilityWarning`; no NaN comes out, and the other envs step as if nothing happened."""
+    _, step = compiled
+    start = episode[1]
+    physics = list(start.physics)
+    nan_row, huge_row = 1, 0  # reach's second env (group 0), drawer-open's first (group 1)
+    physics[0] = physics[0].replace(qvel=physics[0].qvel.at[nan_row, 2].set(jnp.nan))
+    physics[1] = physics[1].replace(qpos=physics[1].qpos.at[huge_row, 0].set(1e11))
+    broken = dataclasses.replace(start, physics=tuple(physics))
+    action = jax.random.uniform(jax.random.key(5), (env.num_envs, 4), minval=-1.0, maxval=1.0)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        stepped = step(broken, action)
+        jax.effects_barrier()
+    assert [w for w in caught if issubclass(w.category, PhysicsInstabilityWarning)]
+    expected_reset = np.zeros(env.num_envs, bool)
+    expected_reset[[nan_row, 2 + huge_row]] = True
+    np.testing.assert_array_equal(stepped.info["physics_reset"], expected_reset)
+    assert np.isfinite(np.asarray(stepped.obs)).all() and np.isfinite(np.asarray(stepped.reward)).all()
+
+    healthy = step(start, action)
+    for row in np.flatnonzero(~expected_reset):
+        np.testing.assert_array_equal(stepped.obs[row], healthy.obs[row])
+
+    # MuJoCo C from the broken state: it resets (and counts it), then steps from its reset data.
+    monkeypatch.chdir(tmp_path)  # where C's warning writes its MUJOCO_LOG.TXT
+    applied = env.apply_action(broken.physics, action)
+    rows = {0: (nan_row, mujoco.mjtWarning.mjWARN_BADQVEL), 1: (huge_row, mujoco.mjtWarning.mjWARN_BADQPOS)}
+    reset_by_c = list(applied)
+    for g, (row, warning) in rows.items():
+        model = env.physics.groups[g].model
+        data, fresh = mujoco.MjData(model), mujoco.MjData(model)
+        for name in ("qpos", "qvel", "ctrl", "mocap_pos", "mocap_quat"):
+            getattr(data, name)[:] = np.asarray(getattr(applied[g], name)[row], np.float64)
+        mujoco.mj_step(model, data, nstep=env.physics.config.substeps)
+        assert data.warning[warning].number == 1
+        mujoco.mj_step(model, fresh, nstep=env.physics.config.substeps)
+        np.testing.assert_array_equal(data.qpos, fresh.qpos)  # C stepped on from mj_resetData's data
+        # mwjax's other mocap bodies are the reference's fixed bodies that its reset moved by
+        # editing the model, which `mj_resetData` keeps: only the hand's mocap (0) comes from C.
+        defaults = mujoco.MjData(model)
+        fields = {name: (row,) for name in ("qpos", "qvel", "ctrl", "qacc_warmstart", "time")}
+        fields.update(mocap_pos=(row, 0), mocap_quat=(row, 0))
+        reset_by_c[g] = reset_by_c[g].replace(
+            **{
+                name: getattr(reset_by_c[g], name).at[at].set(np.asarray(getattr(defaults, name))[at[1:]])
+                for name, at in fields.items()
+            }
+        )
+    # mwjax's reset row steps exactly as mwjax stepping C's reset data.
+    expected = jax.jit(env.physics.step)(tuple(reset_by_c))
+    for g, (row, _) in rows.items():
+        for name in ("qpos", "qvel", "xpos"):
+            got, want = getattr(stepped.physics[g], name)[row], getattr(expected[g], name)[row]
+            np.testing.assert_array_equal(got, want, err_msg=name)
 
 
 def test_an_eagerly_reset_state_feeds_a_jitted_step_that_compiles_once():

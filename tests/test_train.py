@@ -4,6 +4,7 @@ a GPU benchmark. Two tasks of one scene, a tiny batch and 10-step episodes keep 
 import dataclasses
 import json
 import sys
+import time
 from pathlib import Path
 
 import jax
@@ -80,6 +81,18 @@ def test_checkpoints_round_trip(trainer, tmp_path):
     other = ppo.Trainer(dataclasses.replace(CONFIG, hidden=(8, 8, 8)))
     with pytest.raises(ValueError, match="another configuration's"):
         ppo.restore_checkpoint(tmp_path / "ckpt", other.init(jax.random.key(4)))
+
+
+def test_a_chunk_whose_loss_is_not_finite_stops_the_run_before_its_checkpoint(trainer):
+    """A learner gone NaN (here its exploration scale) stops the chunk loop with a clear error
+    instead of training on for the rest of the budget; the caller saves no checkpoint of it."""
+    carry = trainer.init(jax.random.key(5))
+    log_std = carry.params.log_std.at[0, 0].set(np.nan)
+    loop = ppo._Loop(carry._replace(params=carry.params._replace(log_std=log_std)), updates=4)
+    chunks = ppo._chunks(trainer.train_chunk, loop, time.perf_counter(), 600.0, 2, 6)
+    with pytest.raises(FloatingPointError, match="updates 5-6 is not finite"):
+        next(chunks)
+    assert loop.updates == 4
 
 
 @pytest.mark.slow

@@ -210,7 +210,7 @@ def _masked(values: dict[str, Array], mask: Array) -> dict[str, Array]:
 class _SingleEnv(gym.Env):
     """One env of one task over a one-env core, NumPy in and out. `info` holds the core's
     per-step values for the env (`success`, ..., `episode_return`, `episode_length`,
-    `invalid_action`, `physics_overflow`)."""
+    `invalid_action`, `physics_overflow`, `physics_reset`)."""
 
     metadata = {"render_modes": list(rendering.RENDER_MODES), "render_fps": rendering.RENDER_FPS}
 

@@ -152,7 +152,7 @@ def test_staggered_starts_cut_each_first_episode_once_then_run_full_length():
     rollout = jax.jit(trainer._rollout)
     truncated, counted = [], 0
     for _ in range(2 * config.max_episode_steps // config.unroll):
-        carry, batch, episodes, _ = rollout(carry)
+        carry, batch, (episodes, _, _) = rollout(carry)
         truncated.append(np.asarray(batch.truncated))
         counted += int(np.asarray(episodes).sum())
     truncated = np.concatenate(truncated)  # (steps, envs)

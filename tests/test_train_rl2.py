@@ -101,7 +101,7 @@ def test_the_learner_replays_the_rollouts_policy_across_a_trial_boundary(trainer
     resets = []
     for _ in range(5):  # the fifth chunk starts the second trial
         start = carry
-        carry, batch, h0, _, _ = rollout(carry)
+        carry, batch, h0, _ = rollout(carry)
         mean, value = trainer.sequence(carry.params, h0, batch.inputs, batch.reset)
         log_prob = rl2._log_prob(mean, carry.params.log_std, batch.action)
         np.testing.assert_allclose(np.asarray(log_prob), np.asarray(batch.log_prob), rtol=1e-5, atol=1e-5)
@@ -124,7 +124,7 @@ def test_staggered_starts_put_each_env_at_its_own_point_of_a_trial(trainer):
     rollout = jax.jit(trainer.rollout)
     trial_ends, firsts, full = [], [], 0
     for _ in range(trainer.trial_length // CONFIG.unroll):  # one trial's steps
-        carry, batch, _, ended, _ = rollout(carry)
+        carry, batch, _, (ended, _, _) = rollout(carry)
         trial_ends.append(np.asarray(batch.trial_end))
         firsts.append(np.asarray(batch.inputs[..., -1]))  # the "episode just ended" flag
         full += int(np.asarray(ended).sum())

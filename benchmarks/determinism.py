@@ -59,39 +59,46 @@ def child(args: argparse.Namespace) -> None:
         return
     env = mwjax.make(tasks_arg(args.set), envs_per_task=args.envs_per_task, seed=args.seed)
 
-    def rollout(state: mwjax.State, key: jax.Array) -> jax.Array:
+    def chunk(state: mwjax.State, keys: jax.Array) -> tuple[mwjax.State, jax.Array]:
         def body(state: mwjax.State, key: jax.Array) -> tuple:
             state = env.step(state, jax.random.uniform(key, (env.num_envs, 4), minval=-1.0, maxval=1.0))
             parts = [state.obs, state.reward, state.info["success"].astype(jnp.float32)]
             parts += [p.qpos for p in state.physics] + [p.qvel for p in state.physics]
             return state, fingerprint(parts)
 
-        return jax.lax.scan(body, state, jax.random.split(key, args.steps))[1]
+        return jax.lax.scan(body, state, keys)
 
     t0 = time.perf_counter()
-    state = jax.jit(env.reset)(jax.random.key(args.seed))
-    run = jax.jit(rollout).lower(state, jax.random.key(args.seed + 1)).compile()
-    progress(f"{env.num_envs} envs: reset and rollout compiled in {time.perf_counter() - t0:.0f} s")
-    t0 = time.perf_counter()
-    jax.block_until_ready(run(state, jax.random.key(args.seed + 1)))  # Warp's first-call work
-    progress(f"first rollout (Warp's kernel loads and graph captures) in {time.perf_counter() - t0:.0f} s")
-    t0 = time.perf_counter()
-    prints = np.asarray(jax.block_until_ready(run(state, jax.random.key(args.seed + 1))))
+    start = jax.jit(env.reset)(jax.random.key(args.seed))
+    keys = jax.random.split(jax.random.key(args.seed + 1), args.steps).reshape(-1, args.chunk)
+    run = jax.jit(chunk).lower(start, keys[0]).compile()
     seconds = time.perf_counter() - t0
-    digest = hashlib.sha256(prints.tobytes()).hexdigest()
-    # Also on stderr now: a parent cut before its last run still leaves this run's outcome.
-    rate = env.num_envs * args.steps / seconds
-    progress(f"rollout in {seconds:.1f} s ({rate:,.0f} env steps/s), sha256 {digest}")
+    progress(f"{env.num_envs} envs: reset and {args.chunk}-step rollout compiled in {seconds:.0f} s")
+    rollouts = []
+    for r in range(args.rollouts):
+        # The first rollout includes Warp's first-call work (module loads, graph captures).
+        t0, state, prints, digest = time.perf_counter(), start, [], hashlib.sha256()
+        for c, chunk_keys in enumerate(keys):
+            state, p = run(state, chunk_keys)
+            prints.append(np.asarray(jax.block_until_ready(p)))
+            digest.update(prints[-1].tobytes())
+            # On stderr as it goes: a run cut short still shows how far the processes agreed.
+            progress(f"rollout {r}, steps 1-{(c + 1) * args.chunk}: sha256 {digest.hexdigest()[:16]}")
+        seconds = time.perf_counter() - t0
+        rate = env.num_envs * args.steps / seconds
+        rollouts.append({"sha256": digest.hexdigest(), "seconds": seconds, "env_steps_per_s": rate})
+        progress(f"rollout {r} in {seconds:.1f} s ({rate:,.0f} env steps/s), sha256 {digest.hexdigest()}")
     device = jax.devices()[0]
     print(
         json.dumps(
             {
                 "device": getattr(device, "device_kind", str(device)),
                 "num_envs": env.num_envs,
-                "rollout_s": seconds,
-                "env_steps_per_s": rate,
-                "sha256": digest,
-                "steps": prints.tolist(),
+                "rollout_s": rollouts[-1]["seconds"],
+                "env_steps_per_s": rollouts[-1]["env_steps_per_s"],
+                "sha256": rollouts[-1]["sha256"],
+                "rollouts": rollouts,
+                "steps": np.concatenate(prints).tolist(),
             }
         )
     )
@@ -103,6 +110,14 @@ def main() -> None:
     parser.add_argument("--envs-per-task", type=int, default=16)
     parser.add_argument("--steps", type=int, default=500)
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument(
+        "--rollouts",
+        type=int,
+        default=2,
+        help="rollouts per process, each from the same reset (the first includes Warp's first-call work; "
+        "the last is compared across processes and timed)",
+    )
+    parser.add_argument("--chunk", type=int, default=None, help="steps per jitted call (default: all)")
     parser.add_argument("--runs", type=int, default=2, help="processes, one after another")
     parser.add_argument("--parallel", action="store_true", help="the runs side by side, one GPU each")
     parser.add_argument("--deterministic", action="store_true", help="MWJAX_DETERMINISTIC=1 in the runs")
@@ -110,6 +125,9 @@ def main() -> None:
     parser.add_argument("--child", action="store_true", help=argparse.SUPPRESS)
     parser.add_argument("--build-only", action="store_true", help=argparse.SUPPRESS)
     args = parser.parse_args()
+    args.chunk = args.chunk or args.steps
+    if args.steps % args.chunk or args.rollouts < 1:
+        parser.error("--chunk must divide --steps, and --rollouts be at least 1")
     if args.child:
         child(args)
         return
@@ -124,6 +142,7 @@ def main() -> None:
         str(args.envs_per_task),
     ]
     command += ["--steps", str(args.steps), "--seed", str(args.seed)]
+    command += ["--rollouts", str(args.rollouts), "--chunk", str(args.chunk)]
     # stderr (progress, Warp's messages) passes through; stdout carries each run's result.
     if subprocess.run([*command, "--build-only"], env=environ).returncode:
         sys.exit("building the physics kernels failed; its messages are above")
@@ -158,7 +177,11 @@ def main() -> None:
         "set": args.set,
         "deterministic": args.deterministic,
         "parallel": args.parallel,
+        "steps": args.steps,
+        "rollouts": args.rollouts,
         "identical": bool(parted.size == 0),
+        # Each process's rollouts from one reset against each other (the same program run again).
+        "repeats_in_process": all(len({x["sha256"] for x in r["rollouts"]}) == 1 for r in runs),
         "first_differing_step": int(parted[0]) if parted.size else None,
         "runs": runs,
     }

@@ -1,0 +1,100 @@
+"""Where does a task's physics diverge, and does MuJoCo C diverge from the same state?
+
+Runs one task's envs through whole episodes under a stress policy of
+`benchmarks/stress_buffers.py` (default `jammed`), finds every env step that mwjax flagged in
+`info["physics_reset"]` (its state held a NaN or a value past `mjMAXVAL`), and replays that env
+step in MuJoCo C (the same engine version, float64) from the state mwjax stepped it from: same
+qpos, qvel, warm start, mocap poses and controls. It prints, per divergence, how fast the env
+already moved before it and whether C's own checks (`mjWARN_BADQPOS/QVEL/QACC`) fired.
+
+    python tools/divergence_probe.py --task peg-unplug-side-v3 --envs 1024 --policy jammed
+
+Writes a JSON (and prints a table) under `benchmarks/results/fidelity/`.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+import jax
+import jax.numpy as jnp
+import mujoco
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+
+from common import provenance, result_path  # noqa: E402
+from stress_buffers import POLICIES, stress_actions  # noqa: E402
+
+import mwjax  # noqa: E402
+
+FIELDS = ("qpos", "qvel", "qacc_warmstart", "mocap_pos", "mocap_quat", "ctrl")
+BAD = (mujoco.mjtWarning.mjWARN_BADQPOS, mujoco.mjtWarning.mjWARN_BADQVEL, mujoco.mjtWarning.mjWARN_BADQACC)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--task", default="peg-unplug-side-v3")
+    parser.add_argument("--envs", type=int, default=1024)
+    parser.add_argument("--policy", choices=POLICIES, default="jammed")
+    parser.add_argument("--steps", type=int, default=500)
+    parser.add_argument("--chunk", type=int, default=50, help="steps per jitted call")
+    parser.add_argument("--seed", type=int, default=0)
+    args = parser.parse_args()
+
+    env = mwjax.make([args.task], envs_per_task=args.envs, seed=args.seed)
+    act = stress_actions(env)
+    policy = jnp.int32(POLICIES.index(args.policy))
+    keys = jax.random.split(jax.random.key(args.seed + 1), 5)
+
+    @jax.jit
+    def chunk(state: mwjax.State, t0: jax.Array) -> tuple[mwjax.State, tuple]:
+        def body(state: mwjax.State, t: jax.Array) -> tuple[mwjax.State, tuple]:
+            action = act(policy, state.obs, t, keys)
+            # What the physics steps from: the state with the action written in.
+            applied = env.apply_action(state.physics, action)[0]
+            state = env.step(state, action)
+            return state, ({f: getattr(applied, f) for f in FIELDS}, state.info["physics_reset"])
+
+        return jax.lax.scan(body, state, t0 + jnp.arange(args.chunk))
+
+    t_start = time.perf_counter()
+    state = jax.jit(env.reset)(jax.random.key(args.seed))
+    found = []
+    model = env.physics.groups[0].model
+    for t0 in range(0, args.steps, args.chunk):
+        state, (before, reset) = chunk(state, jnp.int32(t0))
+        reset = np.asarray(reset)
+        for i, row in zip(*np.nonzero(reset), strict=True):
+            start = {f: np.asarray(before[f][i, row], np.float64) for f in FIELDS}
+            data = mujoco.MjData(model)
+            for f, value in start.items():
+                getattr(data, f)[:] = value
+            mujoco.mj_step(model, data, nstep=env.physics.config.substeps)
+            c_bad = [w.name for w in BAD if data.warning[w].number]
+            found.append(
+                {
+                    "step": t0 + int(i) + 1,
+                    "env": int(row),
+                    "qvel_max_before": float(np.abs(start["qvel"]).max()),
+                    "qvel_argmax_before": int(np.abs(start["qvel"]).argmax()),
+                    "c_warnings": c_bad,
+                    "c_qvel_max_after": float(np.nan_to_num(np.abs(data.qvel), nan=np.inf).max()),
+                }
+            )
+            print(found[-1], flush=True)
+        print(f"steps {t0 + args.chunk}: {len(found)} divergences ({time.perf_counter() - t_start:.0f} s)", flush=True)
+
+    result = {**provenance(), **vars(args), "divergences": found}
+    out = result_path("fidelity", f"divergence-{args.task}-{args.policy}-{args.envs}", ".json")
+    out.write_text(json.dumps(result, indent=1))
+    c_too = sum(bool(d["c_warnings"]) for d in found)
+    print(f"{len(found)} env steps diverged in mwjax; MuJoCo C from the same states: {c_too} -> {out}")
+
+
+if __name__ == "__main__":
+    main()

@@ -36,6 +36,19 @@ FIELDS = ("qpos", "qvel", "qacc_warmstart", "mocap_pos", "mocap_quat", "ctrl")
 BAD = (mujoco.mjtWarning.mjWARN_BADQPOS, mujoco.mjtWarning.mjWARN_BADQVEL, mujoco.mjtWarning.mjWARN_BADQACC)
 
 
+def replay_in_c(model: mujoco.MjModel, start: dict[str, np.ndarray], substeps: int) -> dict:
+    """One env step of MuJoCo C from `start` (the `FIELDS` of the state mwjax stepped from):
+    which of C's own divergence checks fired, and its fastest joint speed after the step."""
+    data = mujoco.MjData(model)
+    for f, value in start.items():
+        getattr(data, f)[:] = value
+    mujoco.mj_step(model, data, nstep=substeps)
+    return {
+        "c_warnings": [w.name for w in BAD if data.warning[w].number],
+        "c_qvel_max_after": float(np.nan_to_num(np.abs(data.qvel), nan=np.inf).max()),
+    }
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--task", default="peg-unplug-side-v3")
@@ -71,23 +84,18 @@ def main() -> None:
         reset = np.asarray(reset)
         for i, row in zip(*np.nonzero(reset), strict=True):
             start = {f: np.asarray(before[f][i, row], np.float64) for f in FIELDS}
-            data = mujoco.MjData(model)
-            for f, value in start.items():
-                getattr(data, f)[:] = value
-            mujoco.mj_step(model, data, nstep=env.physics.config.substeps)
-            c_bad = [w.name for w in BAD if data.warning[w].number]
             found.append(
                 {
                     "step": t0 + int(i) + 1,
                     "env": int(row),
                     "qvel_max_before": float(np.abs(start["qvel"]).max()),
                     "qvel_argmax_before": int(np.abs(start["qvel"]).argmax()),
-                    "c_warnings": c_bad,
-                    "c_qvel_max_after": float(np.nan_to_num(np.abs(data.qvel), nan=np.inf).max()),
+                    **replay_in_c(model, start, env.physics.config.substeps),
                 }
             )
             print(found[-1], flush=True)
-        print(f"steps {t0 + args.chunk}: {len(found)} divergences ({time.perf_counter() - t_start:.0f} s)", flush=True)
+        seconds = time.perf_counter() - t_start
+        print(f"steps {t0 + args.chunk}: {len(found)} divergences ({seconds:.0f} s)", flush=True)
 
     result = {**provenance(), **vars(args), "divergences": found}
     out = result_path("fidelity", f"divergence-{args.task}-{args.policy}-{args.envs}", ".json")

@@ -309,7 +309,9 @@ class Env:
         info["episode_return"] = episode_return
         info["episode_length"] = steps
         truncated = steps >= self.max_episode_steps
-        terminated = info["success"] if self.terminate_on_success else jnp.zeros_like(truncated)
+        # `terminate_on_success` may also be a traced bool (`replace` inside a jitted function):
+        # one program then steps both ways (`mwjax.evaluation.metalearning_evaluation`).
+        terminated = info["success"] & self.terminate_on_success
         stepped = dataclasses.replace(
             state,
             physics=datas,

@@ -12,6 +12,7 @@
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable
 from typing import Any, NamedTuple, Protocol
 
@@ -175,8 +176,15 @@ def metalearning_evaluation(
     episodes (ending at success). Returns (mean success rate, mean return, success per task)."""
     core = _core(envs)
     adapt_env = core.env.replace(autoreset="same_step", terminate_on_success=False)
-    eval_env = core.env.replace(autoreset="same_step", terminate_on_success=True)
-    adapt_step, eval_step = jax.jit(adapt_env.step), jax.jit(eval_env.step)
+
+    # Adaptation and evaluation differ only in ending episodes at success: one step program takes
+    # that switch as an argument, where two envs would each compile the set's step.
+    @jax.jit
+    def step(state: State, action: Array, terminate: Array) -> State:
+        return adapt_env.replace(terminate_on_success=terminate).step(state, action)
+
+    adapt_step = functools.partial(step, terminate=np.bool_(False))
+    eval_step = functools.partial(step, terminate=np.bool_(True))
     sample, restart = jax.jit(adapt_env.sample_goals), jax.jit(adapt_env.restart)
     observe = core.observation
     tasks = list(dict.fromkeys(adapt_env.task_names))

@@ -173,9 +173,16 @@ class ShardedEnv:
         return self._map("with_physics_state", lambda env, s, p: env.with_physics_state(s, p))(state, physics)
 
     def replace(self, **changes: Any) -> Env | ShardedEnv:
-        """The same env with some config fields changed (`devices=None`: unsharded)."""
+        """The same env with some config fields changed (`devices=None`: unsharded). Changing
+        only the settings `Env.replace` shares the built env for does so here too."""
         devices = changes.pop("devices", self.devices)
         config = dataclasses.replace(self.config, **changes)
+        if devices == self.devices and changes.keys() <= Env._TRACE_TIME_FIELDS:
+            env = copy.copy(self)
+            env.config, env.local, env._mapped = config, self.local.replace(**changes), {}
+            for name in changes:
+                setattr(env, name, getattr(env.local, name))
+            return env
         return Env(config) if devices is None else ShardedEnv(devices, config)
 
     def observation_bounds(self) -> tuple[np.ndarray, np.ndarray]:

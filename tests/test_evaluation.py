@@ -4,6 +4,8 @@ the aggregate statistics."""
 
 from __future__ import annotations
 
+import logging
+
 import gymnasium as gym
 import jax
 import numpy as np
@@ -100,12 +102,16 @@ class BestRandomActionAgent:
         pass
 
 
-def test_metalearning_evaluation_on_ml10_test():
+def test_metalearning_evaluation_on_ml10_test(caplog):
     envs = gym.make_vec("mwjax/ML10-test", meta_batch_size=5, max_episode_steps=4, seed=0)
     agent = BestRandomActionAgent(envs.num_envs)
-    mean_success, mean_return, per_task = metalearning_evaluation(
-        agent, envs, num_evals=2, adaptation_steps=1, adaptation_episodes=2, evaluation_episodes=2
-    )
+    with jax.log_compiles(), caplog.at_level(logging.WARNING, logger="jax"):
+        mean_success, mean_return, per_task = metalearning_evaluation(
+            agent, envs, num_evals=2, adaptation_steps=1, adaptation_episodes=2, evaluation_episodes=2
+        )
+    # Adaptation and evaluation (which ends episodes at success) share one step program.
+    compiled = [r.message for r in caplog.records if r.message.startswith("Finished XLA compilation")]
+    assert sum(" jit(step) " in m for m in compiled) == 1, compiled
     assert agent.calls["init"] == 2 and agent.calls["adapt"] == 2
     assert agent.calls["step"] == 2 * 2 * 4  # 2 evals x 2 episodes x 4 steps, no early termination
     assert list(per_task) == list(ML10_TEST)

@@ -93,6 +93,11 @@ def test_layout(pair):
     again = env.replace(devices=sharded.devices)
     assert type(again) is type(sharded) and again.row_order.tolist() == sharded.row_order.tolist()
     assert type(sharded.replace(devices=None)) is type(env)
+    # A setting read at trace time shares the built env, as `Env.replace` does.
+    terminating = sharded.replace(terminate_on_success=True)
+    assert terminating.local.physics is sharded.local.physics and terminating.devices == sharded.devices
+    assert terminating.terminate_on_success and terminating.local.terminate_on_success
+    assert not sharded.terminate_on_success and not sharded.local.terminate_on_success
 
 
 def _shard_map_inputs(jaxpr):

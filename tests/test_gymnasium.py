@@ -209,6 +209,8 @@ def test_terminate_on_success_in_ml_test_envs(ml_test):
             np.asarray(info["final_info"]["success"]) & np.asarray(info["_final_info"]),
         )
         terminated_any |= np.asarray(terminated)
+        if terminated_any.all():  # the expert needs far fewer than 150 steps on every goal
+            break
     assert terminated_any.all()
 
 

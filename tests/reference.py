@@ -253,12 +253,7 @@ def free_runs(request, run: str) -> dict[str, dict[str, np.ndarray]]:
     which one of the module's tests marked `child(all_task_runs_child)` anchors; elsewhere (a GPU
     holds one process's memory at a time) computed in this process."""
     module = request.module
-    # The module's tests marked with this child's command (test_parity has another child too).
-    anchor = [
-        i
-        for i in request.session.items
-        if i.module is module and all_task_runs_child in (m.args[0] for m in i.iter_markers("child"))
-    ]
+    anchor = [i for i in request.session.items if i.module is module and i.get_closest_marker("child")]
     if jax.default_backend() != "cpu" or not anchor:
         return all_task_runs(request.getfixturevalue("all_tasks"), [run])[run]
     result, workdir = children.result(anchor[0])

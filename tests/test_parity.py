@@ -7,19 +7,14 @@ variants are compared too, and free-running trajectories must stay close for 10 
 
 from __future__ import annotations
 
-import os
-import sys
 from importlib import resources
-from pathlib import Path
 
-import children
 import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
 from reference import (
     FREE_RUN_STEPS,
-    Replay,
     all_task_runs_child,
     engine_reset_gap,
     free_runs,
@@ -98,49 +93,9 @@ def test_every_ported_task_is_recorded_and_covers_mt10():
 REFERENCE_INIT_TCP = ["door-unlock-v3", "handle-press-v3", "handle-pull-v3"]
 
 
-VERSIONS = ("v2", "v1")
-REPLAY_FIELDS = ("obs", "reward", "success")
-
-# The replay in a child process (tests/children.py): on the CPU its 36-scene env (~2 minutes of
-# compiling) builds on the second core while the parent runs the rest of the suite.
-_REPLAY_CHILD = """
-import sys
-import numpy as np
-sys.path.insert(0, "tests")
-from test_parity import REPLAY_FIELDS, replay_all
-np.savez(sys.argv[1], **{f"{version}/{field}/{task}": array for version, replay in replay_all().items()
-                         for field in REPLAY_FIELDS for task, array in getattr(replay, field).items()})
-"""
-
-
-def replay_all() -> dict[str, Replay]:
-    return replay_recorded_states(PORTED, VERSIONS, reference_init_tcp=REFERENCE_INIT_TCP)
-
-
-def _replay_child(workdir: Path) -> tuple[list[str], dict[str, str]]:
-    return [sys.executable, "-c", _REPLAY_CHILD, str(workdir / "replays.npz")], dict(os.environ)
-
-
-# The tests that read the replay wait for its child, so they run last too (the `child` mark).
-replayed = pytest.mark.child.with_args(_replay_child)
-
-
 @pytest.fixture(scope="module")
-def replays(request):
-    """`replay_all()`: on the CPU read from its child, elsewhere (a GPU holds one process's memory
-    at a time) computed in this process."""
-    items = request.session.items
-    anchor = [i for i in items if _replay_child in (m.args[0] for m in i.iter_markers("child"))]
-    if jax.default_backend() != "cpu" or not anchor:
-        return replay_all()
-    result, workdir = children.result(anchor[0])
-    assert result.returncode == 0, result.stderr[-3000:]
-    fields = {version: {field: {} for field in REPLAY_FIELDS} for version in VERSIONS}
-    with np.load(workdir / "replays.npz") as arrays:
-        for name in arrays.files:
-            version, field, task = name.split("/")
-            fields[version][field][task] = arrays[name]
-    return {version: Replay(**fields[version]) for version in VERSIONS}
+def replays():
+    return replay_recorded_states(PORTED, ("v2", "v1"), reference_init_tcp=REFERENCE_INIT_TCP)
 
 
 @pytest.fixture(scope="module")
@@ -168,7 +123,6 @@ def test_goal_variants_equal_reference(task):
     np.testing.assert_array_equal(ours, recorded)
 
 
-@replayed
 @pytest.mark.parametrize("task", PORTED)
 def test_obs_given_state(task, replay):
     err = np.abs(replay.obs[task] - load(task)["obs"])
@@ -186,25 +140,21 @@ def _assert_rewards_match(ours: np.ndarray, ref: np.ndarray) -> None:
     )
 
 
-@replayed
 @pytest.mark.parametrize("task", PORTED)
 def test_reward_v2_given_state(task, replay):
     _assert_rewards_match(replay.reward[task], load(task)["reward_v2"])
 
 
-@replayed
 @pytest.mark.parametrize("task", PORTED)
 def test_success_given_state(task, replay):
     np.testing.assert_array_equal(replay.success[task], load(task)["success_v2"] > 0)
 
 
-@replayed
 @pytest.mark.parametrize("task", PORTED)
 def test_reward_v1_given_state(task, replay_v1):
     _assert_rewards_match(replay_v1.reward[task], load(task)["reward_v1"])
 
 
-@replayed
 @pytest.mark.parametrize("task", PORTED)
 def test_success_v1_given_state(task, replay_v1):
     np.testing.assert_array_equal(replay_v1.success[task], load(task)["success_v1"] > 0)

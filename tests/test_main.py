@@ -4,12 +4,10 @@ that never counts the first run, and the reference figures it prints."""
 from __future__ import annotations
 
 import json
-import os
 import subprocess
 import sys
 from pathlib import Path
 
-import children
 import pytest
 
 from mwjax import __main__ as main_job
@@ -38,26 +36,19 @@ def test_help_loads_neither_jax_nor_the_physics():
     assert result.stdout.splitlines()[-1] == "[]"
 
 
-_IMPORTS = (
-    "import mwjax.env, mwjax.tasks, mwjax.policies, mwjax.benchmarks, mwjax.evaluation\n"
-    "import mwjax.wrappers.gymnasium, mwjax.rendering, mwjax.sharding, mwjax.kernels\n"
-    "from jax._src import xla_bridge\n"
-    "print(xla_bridge.backends_are_initialized())\n"
-)
-
-
-def _imports_only(workdir: Path) -> tuple[list[str], dict[str, str]]:
-    return [sys.executable, "-c", _IMPORTS], dict(os.environ)
-
-
-# A child (tests/children.py): on the CPU it runs beside the rest of the suite.
-@pytest.mark.child.with_args(_imports_only)
-def test_importing_mwjax_claims_no_device(request):
+def test_importing_mwjax_claims_no_device():
     # JAX takes most of a GPU's memory when its backend starts; a module-level jnp constant would
     # start it at import, in processes (a benchmark's parent, a user's torch program) that never
     # simulate, and leave the one that does without room for Warp.
-    result, _ = children.result(request.node)
-    assert result.returncode == 0, result.stderr[-3000:]
+    code = (
+        "import mwjax.env, mwjax.tasks, mwjax.policies, mwjax.benchmarks, mwjax.evaluation\n"
+        "import mwjax.wrappers.gymnasium, mwjax.rendering, mwjax.sharding, mwjax.kernels\n"
+        "from jax._src import xla_bridge\n"
+        "print(xla_bridge.backends_are_initialized())\n"
+    )
+    result = subprocess.run(
+        [sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, check=True
+    )
     assert result.stdout.splitlines()[-1] == "False"
 
 

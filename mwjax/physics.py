@@ -365,6 +365,11 @@ class Physics:
         # at every substep, and Warp captures a graph (with its scratch) per call site and set of
         # buffer addresses, so a site needs one graph instead of one per substep; XLA also
         # compiles one body instead of five (docs/performance.md).
+        def substep(_: int, carry: tuple[mjx.Data, jax.Array]) -> tuple[mjx.Data, jax.Array]:
+            data, rows = carry
+            data = step(data)
+            return data, jnp.maximum(rows, data._impl.nefc)
+
         # MuJoCo C checks qpos and qvel before each step and qacc after its forward pass, and
         # resets a diverged state to the model's defaults (`mj_checkPos/Vel/Acc`, its automatic
         # reset); MJX-Warp checks nothing, and a NaN would spread through a learner's statistics.
@@ -373,11 +378,6 @@ class Physics:
         # substep where it happened (C then integrates the remaining substeps from the reset),
         # and never shows as a NaN (C's next `mj_step` would find it). Selects, not a `lax.cond`
         # per substep: a conditional costs the GPU a host round trip.
-        def substep(_: int, carry: tuple[mjx.Data, jax.Array]) -> tuple[mjx.Data, jax.Array]:
-            data, rows = carry
-            data = step(data)
-            return data, jnp.maximum(rows, data._impl.nefc)
-
         data = self.data(g, state)
         bad_input = _diverged(data.qpos, data.qvel)
         data = _reset_rows(self._defaults[g], data, bad_input)

@@ -148,7 +148,11 @@ def main() -> None:
         print(f"steps {t0 + args.chunk}: {len(found)} divergences ({seconds:.0f} s)", flush=True)
 
     result = {**provenance(), **vars(args), "divergences": found}
-    out = result_path("fidelity", f"divergence-{args.task}-{args.policy}-{args.envs}", ".json")
+    out = result_path(
+        "fidelity",
+        f"divergence-{args.task}-{args.policy}-{args.envs}-seed{args.seed}-lead{args.lead}",
+        ".json",
+    )
     out.write_text(json.dumps(result, indent=1))
     c_too = sum(bool(d["c_warnings"]) for d in found)
     c_run_up = sum(d["c_run_up_first_warning"] is not None for d in found)

@@ -171,6 +171,9 @@ class Metrics(NamedTuple):
     physics_resets: Array  # per task, env steps whose physics diverged and was reset (`mwjax.physics`)
     loss: Array
     approx_kl: Array
+    # The loss's terms (before their coefficients): which one spikes when training breaks down.
+    policy_loss: Array
+    value_loss: Array
 
 
 def _orthogonal(key: Array, shape: tuple[int, ...], scale: float) -> Array:
@@ -481,15 +484,17 @@ class Trainer:
         value_loss = 0.5 * ((self._value(params, mb.obs) - targets) ** 2).mean()
         entropy = jnp.sum(params.log_std + 0.5 * math.log(2 * math.pi * math.e)) / self.n_tasks
         loss = policy_loss + cfg.value_coef * value_loss - cfg.entropy_coef * entropy
-        return loss, (mb.log_prob - log_prob).mean()
+        return loss, ((mb.log_prob - log_prob).mean(), policy_loss, value_loss)
 
     def _update(self, carry: Carry, _: None) -> tuple[Carry, Metrics]:
         carry, batch, counts = self._rollout(carry)
-        carry, loss, kl = self._learn(carry, batch)
-        return carry, Metrics(*counts, loss, kl)
+        carry, losses = self._learn(carry, batch)
+        return carry, Metrics(*counts, *losses)
 
-    def _learn(self, carry: Carry, batch: Transition) -> tuple[Carry, Array, Array]:
-        """The learner's half of an update: returns, advantages and the epochs of minibatches."""
+    def _learn(self, carry: Carry, batch: Transition) -> tuple[Carry, tuple[Array, ...]]:
+        """The learner's half of an update: returns, advantages and the epochs of minibatches.
+        Also returns the loss, the approximate KL, the policy loss and the value loss, each the
+        mean over the update's minibatches."""
         cfg = self.config
         carry, rewards = self._scaled_rewards(carry, batch)
         advantages, targets = self._advantages(carry.params, carry.norm, carry.env_state, batch, rewards)
@@ -517,25 +522,25 @@ class Trainer:
         )
         n = by_task[1].shape[1]
 
-        def epoch(c: tuple, key: Array) -> tuple[tuple, tuple[Array, Array]]:
+        def epoch(c: tuple, key: Array) -> tuple[tuple, tuple[Array, ...]]:
             order = jax.random.permutation(key, n).reshape(cfg.minibatches, -1)
 
-            def minibatch(c: tuple, idx: Array) -> tuple[tuple, tuple[Array, Array]]:
+            def minibatch(c: tuple, idx: Array) -> tuple[tuple, tuple[Array, ...]]:
                 params, opt_state = c
                 mb, adv, tgt = jax.tree.map(lambda x: x[:, idx], by_task)
-                (loss, kl), grads = jax.value_and_grad(self._loss, has_aux=True)(params, mb, adv, tgt)
+                (loss, aux), grads = jax.value_and_grad(self._loss, has_aux=True)(params, mb, adv, tgt)
                 grads = self._pmean(grads)  # data parallel: the mean over every device's minibatch
                 updates, opt_state = self.optimizer.update(grads, opt_state, params)
-                return (optax.apply_updates(params, updates), opt_state), (loss, kl)
+                return (optax.apply_updates(params, updates), opt_state), (loss, *aux)
 
             return jax.lax.scan(minibatch, c, order)
 
         key, epoch_key = jax.random.split(carry.key)
-        (params, opt_state), (loss, kl) = jax.lax.scan(
+        (params, opt_state), losses = jax.lax.scan(
             epoch, (carry.params, carry.opt_state), jax.random.split(epoch_key, cfg.epochs)
         )
         carry = carry._replace(params=params, opt_state=opt_state, norm=norm, key=key)
-        return carry, self._pmean(loss.mean()), self._pmean(kl.mean())
+        return carry, tuple(self._pmean(x.mean()) for x in losses)
 
     def _train_chunk(self, carry: Carry, updates: int) -> tuple[Carry, Metrics]:
         carry, metrics = jax.lax.scan(self._update, carry, None, length=updates)
@@ -545,6 +550,8 @@ class Trainer:
             metrics.physics_resets.sum(0),
             metrics.loss.mean(),
             metrics.approx_kl.mean(),
+            metrics.policy_loss.mean(),
+            metrics.value_loss.mean(),
         )
 
     def rollout_seconds(self, carry: Carry, updates: int) -> float:
@@ -886,6 +893,8 @@ def _row(metrics: Any, updates: int, trainer: Any, wall_s: float) -> dict:
         },
         "loss": float(metrics.loss),
         "approx_kl": float(metrics.approx_kl),
+        "policy_loss": float(metrics.policy_loss),
+        "value_loss": float(metrics.value_loss),
     }
 
 

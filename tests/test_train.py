@@ -40,6 +40,11 @@ def test_updates_are_finite_and_change_the_policy(trainer):
     assert jax.tree.map(jax.typeof, carry) == types
     after = jax.tree.map(np.array, carry.params)
     assert np.isfinite(metrics.loss) and np.isfinite(metrics.approx_kl)
+    # The loss is its terms' weighted sum, up to the entropy bonus (its coefficient times at most
+    # 4 action dims' entropies, which moved a little over the minibatches).
+    assert metrics.value_loss > 0
+    bonus = CONFIG.entropy_coef * 4 * (np.abs(after.log_std).max() + 1.5)
+    assert abs(metrics.loss - metrics.policy_loss - CONFIG.value_coef * metrics.value_loss) <= bonus
     pairs = list(zip(jax.tree.leaves(before), jax.tree.leaves(after), strict=True))
     assert all(np.all(np.isfinite(new)) for _, new in pairs)
     assert any(not np.array_equal(old, new) for old, new in pairs)

@@ -14,8 +14,10 @@ import children
 import jax
 import jax.numpy as jnp
 import numpy as np
+import pytest
 
 import mwjax
+from mwjax.tasks import TASKS
 
 # Recorded by tools/record_reference.py; point MWJAX_REFERENCE_FIXTURES at a fresh recording (any
 # seed, all tasks) to run the parity suite on it.
@@ -222,15 +224,23 @@ def soak_run(all_tasks) -> dict[str, dict[str, np.ndarray]]:
 
 # The free runs of the all-task env (`conftest.make_all_tasks`) in one child process: on the CPU
 # it compiles the 36-scene reset and step once for test_parity, test_episodes and test_soak (~2
-# minutes), on the second core while the parent runs the rest of the suite.
+# minutes), on the second core while the parent runs the rest of the suite. The same child then
+# replays test_parity's recorded states (`parity_replays`): on the 2-core CPU the parent's own work
+# outlasts this child's, and the parent's last minutes run alone on one core, so the replay's
+# minute and a half of CPU is cheaper here than in the parent.
 _ALL_TASK_RUNS = """
 import sys
 import numpy as np
 sys.path.insert(0, "tests")
 from conftest import make_all_tasks
-from reference import all_task_runs
+from reference import all_task_runs, parity_replays
 all_tasks = make_all_tasks()
 runs = all_task_runs(all_tasks)
+for version, replay in parity_replays().items():
+    runs[f"replay-{version}"] = {
+        task: {"obs": replay.obs[task], "reward": replay.reward[task], "success": replay.success[task]}
+        for task in replay.obs
+    }
 np.savez(sys.argv[1], **{f"{run}/{task}/{key}": value for run, tasks in runs.items()
                          for task, arrays in tasks.items() for key, value in arrays.items()})
 """
@@ -252,11 +262,21 @@ def free_runs(request, run: str) -> dict[str, dict[str, np.ndarray]]:
     """`all_task_runs(...)[run]` for a module's tests: on the CPU read from the shared child,
     which one of the module's tests marked `child(all_task_runs_child)` anchors; elsewhere (a GPU
     holds one process's memory at a time) computed in this process."""
+    anchor = _anchor(request)
+    if anchor is None:
+        return all_task_runs(request.getfixturevalue("all_tasks"), [run])[run]
+    return _child_run(anchor, run)
+
+
+def _anchor(request) -> pytest.Item | None:
+    """The test of `request`'s module whose `child` mark runs `all_task_runs_child`, on the CPU."""
     module = request.module
     anchor = [i for i in request.session.items if i.module is module and i.get_closest_marker("child")]
-    if jax.default_backend() != "cpu" or not anchor:
-        return all_task_runs(request.getfixturevalue("all_tasks"), [run])[run]
-    result, workdir = children.result(anchor[0])
+    return anchor[0] if jax.default_backend() == "cpu" and anchor else None
+
+
+def _child_run(anchor: pytest.Item, run: str) -> dict[str, dict[str, np.ndarray]]:
+    result, workdir = children.result(anchor)
     assert result.returncode == 0, result.stderr[-3000:]
     out: dict[str, dict[str, np.ndarray]] = {}
     with np.load(workdir / "runs.npz") as arrays:
@@ -264,4 +284,33 @@ def free_runs(request, run: str) -> dict[str, dict[str, np.ndarray]]:
             which, task, key = name.split("/")
             if which == run:
                 out.setdefault(task, {})[key] = arrays[name]
+    return out
+
+
+# Given-state rewards use mwjax's own episode constants, except where a reset deviates
+# (test_parity's RESET_DEVIATIONS) and the reward reads the settled hand: with its own `init_tcp`,
+# door-unlock's V2 reward matches on 55% of seed 0's steps (one goal's settling finger strikes the
+# lock, which moves the settled tcp by 7 mm), handle-press's and handle-pull's on 75% of seed 23's
+# (the arm settles 1.3e-2 rad away in one goal, MuJoCo C 3.17 1.1e-2). Their reward kernels are
+# checked with the reference's `init_tcp`; the whole-episode returns (test_episodes) use mwjax's own.
+REFERENCE_INIT_TCP = ["door-unlock-v3", "handle-press-v3", "handle-pull-v3"]
+
+
+def parity_replays() -> dict[str, Replay]:
+    """test_parity's given-state replay: every ported task's recorded states, V2 and V1."""
+    ported = [task for task in recorded_tasks() if task in TASKS]
+    return replay_recorded_states(ported, ("v2", "v1"), reference_init_tcp=REFERENCE_INIT_TCP)
+
+
+def given_state_replays(request) -> dict[str, Replay]:
+    """`parity_replays()` for test_parity: on the CPU read from the all-task child (see
+    `free_runs`), elsewhere computed in this process."""
+    anchor = _anchor(request)
+    if anchor is None:
+        return parity_replays()
+    out = {}
+    for version in ("v2", "v1"):
+        arrays = _child_run(anchor, f"replay-{version}")
+        fields = {key: {task: a[key] for task, a in arrays.items()} for key in ("obs", "reward", "success")}
+        out[version] = Replay(**fields)
     return out

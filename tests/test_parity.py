@@ -18,9 +18,9 @@ from reference import (
     all_task_runs_child,
     engine_reset_gap,
     free_runs,
+    given_state_replays,
     load,
     recorded_tasks,
-    replay_recorded_states,
 )
 
 import mwjax
@@ -84,18 +84,11 @@ def test_every_ported_task_is_recorded_and_covers_mt10():
     assert set(PORTED) == set(TASKS), f"ported without a recording: {sorted(set(TASKS) - set(PORTED))}"
 
 
-# Given-state rewards use mwjax's own episode constants, except where a reset deviates
-# (RESET_DEVIATIONS) and the reward reads the settled hand: with its own `init_tcp`, door-unlock's
-# V2 reward matches on 55% of seed 0's steps (one goal's settling finger strikes the lock, which
-# moves the settled tcp by 7 mm), handle-press's and handle-pull's on 75% of seed 23's (the arm
-# settles 1.3e-2 rad away in one goal, MuJoCo C 3.17 1.1e-2). Their reward kernels are checked
-# with the reference's `init_tcp`; the whole-episode returns (test_episodes) use mwjax's own.
-REFERENCE_INIT_TCP = ["door-unlock-v3", "handle-press-v3", "handle-pull-v3"]
-
-
 @pytest.fixture(scope="module")
-def replays():
-    return replay_recorded_states(PORTED, ("v2", "v1"), reference_init_tcp=REFERENCE_INIT_TCP)
+def replays(request):
+    """The given-state replay (`reference.parity_replays`; on the CPU from the all-task child, so
+    the tests that read it run late, as those of the free run)."""
+    return given_state_replays(request)
 
 
 @pytest.fixture(scope="module")
@@ -123,6 +116,7 @@ def test_goal_variants_equal_reference(task):
     np.testing.assert_array_equal(ours, recorded)
 
 
+@pytest.mark.late
 @pytest.mark.parametrize("task", PORTED)
 def test_obs_given_state(task, replay):
     err = np.abs(replay.obs[task] - load(task)["obs"])
@@ -140,21 +134,25 @@ def _assert_rewards_match(ours: np.ndarray, ref: np.ndarray) -> None:
     )
 
 
+@pytest.mark.late
 @pytest.mark.parametrize("task", PORTED)
 def test_reward_v2_given_state(task, replay):
     _assert_rewards_match(replay.reward[task], load(task)["reward_v2"])
 
 
+@pytest.mark.late
 @pytest.mark.parametrize("task", PORTED)
 def test_success_given_state(task, replay):
     np.testing.assert_array_equal(replay.success[task], load(task)["success_v2"] > 0)
 
 
+@pytest.mark.late
 @pytest.mark.parametrize("task", PORTED)
 def test_reward_v1_given_state(task, replay_v1):
     _assert_rewards_match(replay_v1.reward[task], load(task)["reward_v1"])
 
 
+@pytest.mark.late
 @pytest.mark.parametrize("task", PORTED)
 def test_success_v1_given_state(task, replay_v1):
     np.testing.assert_array_equal(replay_v1.success[task], load(task)["success_v1"] > 0)

@@ -20,10 +20,9 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
-from reference import EPISODES, load, load_episodes, recorded_tasks, shape
+from reference import EPISODES, load, load_episodes, ported_tasks, shape
 
 import mwjax
-from mwjax.tasks import TASKS
 
 
 def _on_gpu() -> bool:
@@ -77,7 +76,7 @@ def all_tasks() -> AllTasks:
 
 def make_all_tasks() -> AllTasks:
     """The `all_tasks` env, also for a child process (tests/test_episodes.py)."""
-    ported = [task for task in recorded_tasks() if task in TASKS]
+    ported = ported_tasks()
     goals = {
         task: np.concatenate([load(task)["rand_vec"], load_episodes(EPISODES, task)["rand_vec"]])
         for task in ported

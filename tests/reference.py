@@ -44,6 +44,11 @@ def recorded_tasks() -> list[str]:
     return sorted(p.stem for p in FIXTURES.glob("*-v3.npz"))
 
 
+def ported_tasks() -> list[str]:
+    """The recorded tasks that mwjax implements."""
+    return [task for task in recorded_tasks() if task in TASKS]
+
+
 def shape(task: str) -> tuple[int, int]:
     """(resets, steps) recorded for `task`."""
     return load(task)["action"].shape[:2]
@@ -56,6 +61,9 @@ class Replay:
     obs: dict[str, np.ndarray]
     reward: dict[str, np.ndarray]
     success: dict[str, np.ndarray]
+
+
+REPLAY_FIELDS = [field.name for field in dataclasses.fields(Replay)]
 
 
 def replay_recorded_states(
@@ -233,13 +241,12 @@ import sys
 import numpy as np
 sys.path.insert(0, "tests")
 from conftest import make_all_tasks
-from reference import all_task_runs, parity_replays
+from reference import REPLAY_FIELDS, all_task_runs, parity_replays
 all_tasks = make_all_tasks()
 runs = all_task_runs(all_tasks)
 for version, replay in parity_replays().items():
     runs[f"replay-{version}"] = {
-        task: {"obs": replay.obs[task], "reward": replay.reward[task], "success": replay.success[task]}
-        for task in replay.obs
+        task: {field: getattr(replay, field)[task] for field in REPLAY_FIELDS} for task in replay.obs
     }
 np.savez(sys.argv[1], **{f"{run}/{task}/{key}": value for run, tasks in runs.items()
                          for task, arrays in tasks.items() for key, value in arrays.items()})
@@ -298,8 +305,7 @@ REFERENCE_INIT_TCP = ["door-unlock-v3", "handle-press-v3", "handle-pull-v3"]
 
 def parity_replays() -> dict[str, Replay]:
     """test_parity's given-state replay: every ported task's recorded states, V2 and V1."""
-    ported = [task for task in recorded_tasks() if task in TASKS]
-    return replay_recorded_states(ported, ("v2", "v1"), reference_init_tcp=REFERENCE_INIT_TCP)
+    return replay_recorded_states(ported_tasks(), ("v2", "v1"), reference_init_tcp=REFERENCE_INIT_TCP)
 
 
 def given_state_replays(request) -> dict[str, Replay]:
@@ -311,6 +317,6 @@ def given_state_replays(request) -> dict[str, Replay]:
     out = {}
     for version in ("v2", "v1"):
         arrays = _child_run(anchor, f"replay-{version}")
-        fields = {key: {task: a[key] for task, a in arrays.items()} for key in ("obs", "reward", "success")}
+        fields = {key: {task: a[key] for task, a in arrays.items()} for key in REPLAY_FIELDS}
         out[version] = Replay(**fields)
     return out

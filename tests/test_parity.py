@@ -20,7 +20,7 @@ from reference import (
     free_runs,
     given_state_replays,
     load,
-    recorded_tasks,
+    ported_tasks,
 )
 
 import mwjax
@@ -29,7 +29,7 @@ from mwjax.models import load_scene
 from mwjax.tasks import TASKS
 
 # Every ported task that has a reference recording; MT10 must be among them.
-PORTED = [task for task in recorded_tasks() if task in TASKS]
+PORTED = ported_tasks()
 
 OBS_TOL = 1e-5
 REWARD_TOL = 1e-4

@@ -169,6 +169,9 @@ class Metrics(NamedTuple):
     physics_resets: Array  # per train task, env steps whose physics diverged and was reset
     loss: Array
     approx_kl: Array
+    # The loss's terms (before their coefficients), as in the PPO example's curves.
+    policy_loss: Array
+    value_loss: Array
 
 
 class MetaTestResult(NamedTuple):
@@ -424,7 +427,9 @@ class Trainer:
 
     def _loss(
         self, params: Params, h0: Array, mb: Transition, advantages: Array, targets: Array
-    ) -> tuple[Array, Array]:
+    ) -> tuple[Array, tuple[Array, Array, Array]]:
+        """The PPO loss of a minibatch of trials; also the approximate KL, the policy loss and
+        the value loss."""
         cfg = self.config
         mean, value = self.sequence(params, h0, mb.inputs, mb.reset)
         log_prob = _log_prob(mean, params.log_std, mb.action)
@@ -435,7 +440,7 @@ class Trainer:
         value_loss = 0.5 * ((value - targets) ** 2).mean()
         entropy = jnp.sum(params.log_std + 0.5 * math.log(2 * math.pi * math.e))
         loss = policy_loss + cfg.value_coef * value_loss - cfg.entropy_coef * entropy
-        return loss, (mb.log_prob - log_prob).mean()
+        return loss, ((mb.log_prob - log_prob).mean(), policy_loss, value_loss)
 
     def _update(self, carry: Carry, _: None) -> tuple[Carry, Metrics]:
         cfg = self.config
@@ -457,27 +462,26 @@ class Trainer:
         advantages = self._normalized(advantages)
         norm = norm._replace(obs=norm.obs.merge(batch.obs, (0, 1)))
 
-        def epoch(c: tuple, key: Array) -> tuple[tuple, tuple[Array, Array]]:
+        def epoch(c: tuple, key: Array) -> tuple[tuple, tuple[Array, ...]]:
             order = jax.random.permutation(key, self.env.num_envs).reshape(cfg.minibatches, -1)
 
-            def minibatch(c: tuple, idx: Array) -> tuple[tuple, tuple[Array, Array]]:
+            def minibatch(c: tuple, idx: Array) -> tuple[tuple, tuple[Array, ...]]:
                 params, opt_state = c
                 mb = jax.tree.map(lambda x: x[:, idx], batch)
                 grad_fn = jax.value_and_grad(self._loss, has_aux=True)
-                (loss, kl), grads = grad_fn(params, h0[idx], mb, advantages[:, idx], targets[:, idx])
+                (loss, aux), grads = grad_fn(params, h0[idx], mb, advantages[:, idx], targets[:, idx])
                 updates, opt_state = self.optimizer.update(grads, opt_state, params)
-                return (optax.apply_updates(params, updates), opt_state), (loss, kl)
+                return (optax.apply_updates(params, updates), opt_state), (loss, *aux)
 
             return jax.lax.scan(minibatch, c, order)
 
         key, epoch_key = jax.random.split(carry.key)
-        (params, opt_state), (loss, kl) = jax.lax.scan(
+        (params, opt_state), losses = jax.lax.scan(
             epoch, (carry.params, carry.opt_state), jax.random.split(epoch_key, cfg.epochs)
         )
         carry = carry._replace(params=params, opt_state=opt_state, norm=norm, running_return=running, key=key)
         per_task = (_per_task(x, self.n_tasks).sum(axis=(0, 2)) for x in counts)
-        metrics = Metrics(*per_task, loss.mean(), kl.mean())
-        return carry, metrics
+        return carry, Metrics(*per_task, *(x.mean() for x in losses))
 
     def _train_chunk(self, carry: Carry, updates: int) -> tuple[Carry, Metrics]:
         carry, metrics = jax.lax.scan(self._update, carry, None, length=updates)
@@ -487,6 +491,8 @@ class Trainer:
             metrics.physics_resets.sum(0),
             metrics.loss.mean(),
             metrics.approx_kl.mean(),
+            metrics.policy_loss.mean(),
+            metrics.value_loss.mean(),
         )
 
     @property

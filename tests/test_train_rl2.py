@@ -57,9 +57,18 @@ def test_updates_are_finite_and_change_the_policy(trainer):
         # The carry comes back as it went in (dtypes, weak types): later chunks do not compile again.
         assert jax.tree.map(jax.typeof, carry) == types
         assert np.isfinite(metrics.loss) and np.isfinite(metrics.approx_kl)
+        # The loss is its terms' weighted sum, up to the entropy bonus (its coefficient times at
+        # most 4 action dims' entropies, which moved a little over the minibatches).
+        assert metrics.value_loss > 0
+        bonus = CONFIG.entropy_coef * 4 * (np.abs(carry.params.log_std).max() + 1.5)
+        assert abs(metrics.loss - metrics.policy_loss - CONFIG.value_coef * metrics.value_loss) <= bonus
         # Two updates are one episode: every env ended exactly one.
         np.testing.assert_array_equal(metrics.episodes, [CONFIG.envs_per_task])
         assert np.all(metrics.successes <= metrics.episodes)
+        # The chunk's metrics make a learning-curve row as `train` logs it.
+        row = rl2.ppo._row(metrics, 2, trainer, 0.0)
+        assert row["env_steps"] == 2 * trainer.steps_per_update and row["train_success"] is not None
+        assert (row["policy_loss"], row["value_loss"]) == (metrics.policy_loss, metrics.value_loss)
     after = _leaves(carry.params)
     assert all(np.all(np.isfinite(x)) for x in after)
     assert any(not np.array_equal(old, new) for old, new in zip(before, after, strict=True))

@@ -195,7 +195,7 @@ def _with_provenance(function: Callable[..., dict], *args: object) -> dict:
 def measure_adapter(benchmark: str, total: int, steps: int, array_type: str, graph_mode: str | None) -> dict:
     """The Gymnasium adapter stepped from Python with `array_type` actions in and results out:
     "numpy" is what a Gymnasium user gets, "jax" (device arrays) isolates the host transfer.
-    `graph_mode` is the adapter env's `PhysicsConfig.graph_mode` (None: MJX's default)."""
+    `graph_mode` is the adapter env's `PhysicsConfig.graph_mode` (None: the adapter's default)."""
     n_tasks = len(task_names(tasks_arg(benchmark)))
     envs = make_vector(
         tasks_arg(benchmark),
@@ -307,7 +307,8 @@ def main() -> None:
         "--adapter-graph-modes",
         nargs="+",
         default=["default"],
-        help="the adapter's PhysicsConfig.graph_mode, a row each ('default': MJX's)",
+        help="the adapter's PhysicsConfig.graph_mode, a row each ('default': the adapter's own, Warp's "
+        "staged mode on one GPU; 'warp': MJX's default capture)",
     )
     parser.add_argument("--plot", action="store_true", help="save the scaling curve as a PNG")
     parser.add_argument("--out", default=None, help="JSON path (default: benchmarks/results/throughput/...)")

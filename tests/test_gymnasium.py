@@ -235,3 +235,28 @@ def test_default_truncation_is_500():
         _, _, _, truncated, info = envs.step(actions)
         assert bool(truncated.all()) == (step == 500)
     assert np.asarray(info["final_info"]["episode"]["l"]).tolist() == [500, 500]
+
+
+def test_the_adapter_uses_warp_staged_graphs_on_one_gpu_only(monkeypatch):
+    """Where the caller leaves Warp's graph mode to MJX, the adapter asks for the staged mode on
+    one GPU (its Python-stepped calls then replay their graphs), and leaves it alone on the CPU,
+    over several devices, in the deterministic mode and where the caller chose a mode."""
+    from types import SimpleNamespace
+
+    from mwjax import determinism
+    from mwjax.wrappers import gymnasium as adapter
+
+    gpu, cpu = SimpleNamespace(platform="gpu"), SimpleNamespace(platform="cpu")
+    chosen = mwjax.PhysicsConfig(graph_mode="none", contacts_per_env=32)
+    monkeypatch.setattr(adapter, "local_device", lambda: gpu)
+    staged = adapter._adapter_physics(mwjax.PhysicsConfig(contacts_per_env=32), None)
+    assert staged == mwjax.PhysicsConfig(graph_mode="warp_staged_ex", contacts_per_env=32)
+    assert adapter._adapter_physics(None, [gpu]).graph_mode == "warp_staged_ex"
+    assert adapter._adapter_physics(None, [gpu, gpu]).graph_mode is None
+    assert adapter._adapter_physics(None, [cpu]).graph_mode is None
+    assert adapter._adapter_physics(chosen, None) == chosen
+    monkeypatch.setattr(determinism, "enabled", lambda: True)
+    assert adapter._adapter_physics(None, None).graph_mode is None
+    monkeypatch.setattr(adapter, "local_device", lambda: cpu)
+    monkeypatch.setattr(determinism, "enabled", lambda: False)
+    assert adapter._adapter_physics(None, None).graph_mode is None

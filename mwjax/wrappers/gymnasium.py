@@ -144,10 +144,11 @@ class MwjaxVectorEnv(gym.vector.VectorEnv):
         self.observation_space = gym.vector.utils.batch_space(self.single_observation_space, self.num_envs)
         self.action_space = gym.vector.utils.batch_space(self.single_action_space, self.num_envs)
         # Called step by step from Python, these programs get new temporary buffers at every
-        # call, so on a GPU Warp captures their calls' CUDA graphs anew each time; keeping one
-        # graph per call site (`mwjax.warp_graphs`) instead of Warp's up to 32, each with its
-        # collider scratch, is what lets 100k+ envs fit. The old state is donated (`state` is
-        # always the current one).
+        # call, so in Warp's "warp" graph mode (a caller's choice; `_adapter_physics`) they
+        # capture their calls' CUDA graphs anew each time; keeping one graph per call site
+        # (`mwjax.warp_graphs`) instead of Warp's up to 32, each with its collider scratch, is
+        # what lets 100k+ envs fit there. The staged mode replays one graph per call and needs
+        # no bound. The old state is donated (`state` is always the current one).
         self._reset = warp_graphs.stepped_from_python(jax.jit(env.reset))
         self._step = warp_graphs.stepped_from_python(jax.jit(env.step, donate_argnums=0))
         self._sample_goals = warp_graphs.stepped_from_python(jax.jit(env.sample_goals))

@@ -256,6 +256,12 @@ class Physics:
     """One MJX-Warp batch per scene; the batch's state is a tuple with one `PhysicsState` per group."""
 
     def __init__(self, scenes: Sequence[tuple[str, tuple[str, ...], int]], config: PhysicsConfig) -> None:
+        if local_device().platform != "gpu" and config.graph_mode not in (None, *_CPU_GRAPH_MODES):
+            # Warp would accept it here and fail at the first step, inside XLA.
+            raise ValueError(
+                f"graph_mode={config.graph_mode!r} captures CUDA graphs and needs a GPU; on the CPU "
+                f"Warp runs {' or '.join(map(repr, _CPU_GRAPH_MODES))} (or None, MJX's choice)"
+            )
         self.config = config
         groups = []
         start = 0
@@ -549,6 +555,10 @@ def local_device() -> jax.Device:
     drives each GPU (`mwjax.distributed`)."""
     gpus = [d for d in jax.local_devices() if d.platform == "gpu"]
     return gpus[0] if gpus else jax.local_devices(backend="cpu")[0]
+
+
+# The graph modes Warp's CPU FFI calls run in (warp/_src/jax/ffi.py refuses the others there).
+_CPU_GRAPH_MODES = ("none", "jax")
 
 
 def _graph_mode(name: str | None) -> warp.JaxCallableGraphMode | None:

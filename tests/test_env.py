@@ -198,6 +198,9 @@ def test_bad_arguments():
         mwjax.PhysicsConfig(box_box_collider="gjk")
     with pytest.raises(ValueError, match="unknown graph_mode 'cuda'"):
         mwjax.PhysicsConfig(graph_mode="cuda")
+    if jax.default_backend() == "cpu":
+        with pytest.raises(ValueError, match="'warp_staged_ex' captures CUDA graphs and needs a GPU"):
+            mwjax.make("MT1:reach-v3", physics=mwjax.PhysicsConfig(graph_mode="warp_staged_ex"))
     for rows in (0, "per_env"):
         with pytest.raises(ValueError, match="constraints_per_env"):
             mwjax.PhysicsConfig(constraints_per_env=rows)

@@ -163,15 +163,8 @@ class Carry(NamedTuple):
     key: Array
 
 
-class Metrics(NamedTuple):
-    episodes: Array  # per train task
-    successes: Array
-    physics_resets: Array  # per train task, env steps whose physics diverged and was reset
-    loss: Array
-    approx_kl: Array
-    # The loss's terms (before their coefficients), as in the PPO example's curves.
-    policy_loss: Array
-    value_loss: Array
+# The PPO example's, its counts per train task: the curve rows (`ppo._row`) read them alike.
+Metrics = ppo.Metrics
 
 
 class MetaTestResult(NamedTuple):
@@ -485,15 +478,7 @@ class Trainer:
 
     def _train_chunk(self, carry: Carry, updates: int) -> tuple[Carry, Metrics]:
         carry, metrics = jax.lax.scan(self._update, carry, None, length=updates)
-        return carry, Metrics(
-            metrics.episodes.sum(0),
-            metrics.successes.sum(0),
-            metrics.physics_resets.sum(0),
-            metrics.loss.mean(),
-            metrics.approx_kl.mean(),
-            metrics.policy_loss.mean(),
-            metrics.value_loss.mean(),
-        )
+        return carry, ppo.chunk_metrics(metrics)
 
     @property
     def steps_per_update(self) -> int:

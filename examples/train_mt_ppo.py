@@ -176,6 +176,20 @@ class Metrics(NamedTuple):
     value_loss: Array
 
 
+def chunk_metrics(per_update: Metrics) -> Metrics:
+    """A chunk's metrics from its updates' (stacked on a leading axis): the counts summed, the
+    losses averaged."""
+    return Metrics(
+        per_update.episodes.sum(0),
+        per_update.successes.sum(0),
+        per_update.physics_resets.sum(0),
+        per_update.loss.mean(),
+        per_update.approx_kl.mean(),
+        per_update.policy_loss.mean(),
+        per_update.value_loss.mean(),
+    )
+
+
 def _orthogonal(key: Array, shape: tuple[int, ...], scale: float) -> Array:
     """`jax.nn.initializers.orthogonal`'s matrices (the last two axes; any leading ones are a
     batch), with the QR done by NumPy on the host: inside a jitted function on a 2-core CPU, two
@@ -544,15 +558,7 @@ class Trainer:
 
     def _train_chunk(self, carry: Carry, updates: int) -> tuple[Carry, Metrics]:
         carry, metrics = jax.lax.scan(self._update, carry, None, length=updates)
-        return carry, Metrics(
-            metrics.episodes.sum(0),
-            metrics.successes.sum(0),
-            metrics.physics_resets.sum(0),
-            metrics.loss.mean(),
-            metrics.approx_kl.mean(),
-            metrics.policy_loss.mean(),
-            metrics.value_loss.mean(),
-        )
+        return carry, chunk_metrics(metrics)
 
     def rollout_seconds(self, carry: Carry, updates: int) -> float:
         """Wall time of the rollouts of `updates` updates alone (the policy acting, the env

@@ -144,8 +144,8 @@ def test_the_staged_mode_replays_its_graphs_with_each_calls_inputs():
 @pytest.mark.gpu
 def test_the_adapter_steps_and_renders_in_the_staged_mode():
     """The Gymnasium adapter with `graph_mode="warp_staged_ex"` (its donated step and reset
-    replay one graph each): observations move and stay finite, a reset with the same seed starts over, and
-    `render()` draws every chosen env."""
+    replay one graph each): observations move and stay finite, a reset with the same seed starts
+    over, and `render()` draws every chosen env."""
     import numpy as np
 
     import mwjax

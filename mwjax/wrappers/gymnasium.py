@@ -70,11 +70,10 @@ def _adapter_physics(physics: PhysicsConfig | None, devices: Sequence[jax.Device
     graphs there), over several devices (one graph per traced call would serve them all) or in
     the deterministic mode (which launches kernels one by one to check their record buffers)."""
     config = physics or PhysicsConfig()
-    device = local_device() if devices is None or len(devices) != 1 else devices[0]
-    single = devices is None or len(devices) == 1
-    if config.graph_mode is None and single and device.platform == "gpu" and not determinism.enabled():
-        return dataclasses.replace(config, graph_mode="warp_staged_ex")
-    return config
+    if config.graph_mode is not None or determinism.enabled() or (devices is not None and len(devices) != 1):
+        return config
+    device = local_device() if devices is None else devices[0]
+    return dataclasses.replace(config, graph_mode="warp_staged_ex") if device.platform == "gpu" else config
 
 
 def _check_actions_dtype(dtype: Any) -> None:

@@ -11,6 +11,7 @@ so the row says where the time goes. One JSON row per measurement is printed (an
     python benchmarks/render_throughput.py                      # MT1 pick-place and MT10, 64 and 128 px
     python benchmarks/render_throughput.py --sets MT10 --batch 16384 --sizes 64
     python benchmarks/render_throughput.py --video mt10.mp4     # also a video of 10 envs (experts)
+    python benchmarks/render_throughput.py --sets MT10 --sizes 32 64 128 --render-only  # rendering alone
 
 On a GPU it sets XLA_PYTHON_CLIENT_MEM_FRACTION=0.45 (unless set) so that JAX leaves Warp room.
 """
@@ -98,20 +99,22 @@ def measure(name: str, batch: int, size: int, args, device: str) -> dict:
     state = reset(key)
     jax.block_until_ready(state.pixels)
 
-    log(f"[{name} batch {n} {size}x{size}] pixels rollout: compile + warm-up ...")
-    run = rollout(pixel_env.step, args.steps, n, pixels=True)
     holder = {"state": state}
+    steps_per_s = compile_s = None
+    if not args.render_only:
+        log(f"[{name} batch {n} {size}x{size}] pixels rollout: compile + warm-up ...")
+        run = rollout(pixel_env.step, args.steps, n, pixels=True)
 
-    def pixel_call():
-        holder["state"], total = run(holder["state"], key)
-        return total
+        def pixel_call():
+            holder["state"], total = run(holder["state"], key)
+            return total
 
-    seconds, compile_s = timed(pixel_call, repeats=args.repeats)
-    steps_per_s = n * args.steps / seconds
-    log(f"[{name} batch {n} {size}x{size}] {steps_per_s:,.0f} env steps/s with pixels")
+        seconds, compile_s = timed(pixel_call, repeats=args.repeats)
+        steps_per_s = n * args.steps / seconds
+        log(f"[{name} batch {n} {size}x{size}] {steps_per_s:,.0f} env steps/s with pixels")
 
     physics_steps_per_s = None
-    if not args.no_baseline:
+    if not args.no_baseline and not args.render_only:
         log(f"[{name} batch {n}] physics-only rollout ...")
         plain = rollout(env.step, args.steps, n, pixels=False)
         holder["plain"] = jax.jit(env.reset)(key)
@@ -123,7 +126,7 @@ def measure(name: str, batch: int, size: int, args, device: str) -> dict:
         plain_seconds, _ = timed(plain_call, repeats=args.repeats)
         physics_steps_per_s = n * args.steps / plain_seconds
         log(f"[{name} batch {n}] {physics_steps_per_s:,.0f} env steps/s without pixels")
-
+    if not args.no_baseline:
         log(f"[{name} batch {n} {size}x{size}] render-only ...")
         renders = 10
         renderer = pixel_env.renderer
@@ -155,11 +158,11 @@ def measure(name: str, batch: int, size: int, args, device: str) -> dict:
         "shadows": args.shadows,
         "graph_mode": args.graph_mode,
         "steps_per_rollout": args.steps,
-        "steps_per_s": round(steps_per_s),
+        "steps_per_s": None if steps_per_s is None else round(steps_per_s),
         "physics_steps_per_s": None if physics_steps_per_s is None else round(physics_steps_per_s),
         "render_frames_per_s": None if render_frames_per_s is None else round(render_frames_per_s),
         "renderer_build_s": round(build_s, 2),
-        "pixels_compile_s": round(compile_s, 1),
+        "pixels_compile_s": None if compile_s is None else round(compile_s, 1),
         "commit": commit(),
         "date": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
         "jax": jax.__version__,
@@ -204,6 +207,7 @@ def main(argv=None) -> int:
     p.add_argument("--shadows", action="store_true", help="cast the scene's shadows (a second ray per pixel)")
     p.add_argument("--graph-mode", help="the render calls' graph capture: warp, jax or none (default: MJX's)")
     p.add_argument("--no-baseline", action="store_true", help="skip the physics-only and render-only timings")
+    p.add_argument("--render-only", action="store_true", help="time rendering alone (no rollouts)")
     p.add_argument("--out", help="JSON lines file to append rows to")
     p.add_argument("--video", help="also write a video (.mp4 or .gif) of up to 10 envs of the last set")
     p.add_argument("--video-size", type=int, default=128)

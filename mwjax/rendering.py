@@ -19,6 +19,7 @@ step and draw them afterwards (`record_video`).
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 import functools
 import struct
@@ -152,7 +153,7 @@ class _Group:
         skybox = model.tex_type == mujoco.mjtTexture.mjTEXTURE_SKYBOX
         self._new_context = functools.partial(
             mjx.create_render_context,
-            mjm=model,
+            mjm=_visible_geoms_model(model),
             cam_res=(width, height),
             render_rgb=rgb,
             render_depth=depth,
@@ -639,6 +640,21 @@ def _visual_model(scene: str, host: mujoco.MjModel, sites: bool) -> tuple[mujoco
     if next_geom != host.ngeom:
         raise AssertionError(f"{scene}: the visual model lacks geoms of the env's")
     return model, np.array(source, np.int32)
+
+
+def _visible_geoms_model(model: mujoco.MjModel) -> mujoco.MjModel:
+    """The visual model for MJWarp's render context with every transparent geom (alpha 0, the
+    colour MJWarp's ray tracer uses: the geom's rgba, or its material's where the geom's is the
+    default) moved to a group that is not drawn, so the scene BVH leaves it out instead of every
+    ray testing and skipping it. Meta-World's arm has eight such collision shapes (cylinders
+    around its links, the head's screen, the mocap sphere) in drawn groups."""
+    rgba = model.geom_rgba.copy()
+    default = (model.geom_matid >= 0) & np.all(rgba == np.array([0.5, 0.5, 0.5, 1.0], np.float32), axis=1)
+    rgba[default] = model.mat_rgba[model.geom_matid[default]]
+    hidden = next(g for g in range(mujoco.mjNGROUP) if g not in _VISIBLE_GROUPS)
+    visible = copy.copy(model)
+    visible.geom_group[rgba[:, 3] == 0] = hidden
+    return visible
 
 
 def _camera_id(model: mujoco.MjModel, name: str) -> int:

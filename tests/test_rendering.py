@@ -175,6 +175,23 @@ def test_the_arm_moves_in_the_images(rollout):
     assert rows.mean() > 12 and cols.mean() < 20
 
 
+def test_transparent_geoms_are_left_out_of_the_bvh_and_no_pixel_changes(rollout, monkeypatch):
+    """The ray tracer's scene BVH holds only geoms a ray can hit: the arm's transparent collision
+    shapes move to an undrawn group (fewer boxes for every ray to cross), and every pixel of the
+    rollout's last frame is as with them in the BVH."""
+    env, _, _, captures = rollout
+    ((_, _, group),) = env.renderer._groups
+    visible = rendering._visible_geoms_model(group.model)
+    moved = np.flatnonzero(visible.geom_group != group.model.geom_group)
+    assert len(moved) >= 6 and set(visible.geom_group[moved]) == {3}
+    last = jax.tree.map(lambda x: x[-1], captures)
+    draw = lambda renderer: np.asarray(jax.jit(renderer.draw)(last).rgb)  # noqa: E731
+    lean = draw(rendering.Renderer(env.env, camera="corner", width=32, height=32))
+    monkeypatch.setattr(rendering, "_visible_geoms_model", lambda model: model)
+    every_geom = draw(rendering.Renderer(env.env, camera="corner", width=32, height=32))
+    assert lean.std() > 10 and np.array_equal(lean, every_geom)
+
+
 def test_pixel_observations_vmapped_over_keys_are_each_keys_own():
     """Pixel observations under an outer `jax.vmap` (over seeds, say) render every instance's envs
     in one call with a context made for all of them; each instance's images, the per-env free

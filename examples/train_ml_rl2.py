@@ -75,7 +75,9 @@ class Config:
     task_set: str | Benchmark = "ML10"
     task: str | None = None
     envs_per_task: int = 1024
-    episodes_per_trial: int = 10
+    # As long as the meta-test's trials (10 adaptation + 3 evaluation episodes), whose evaluated
+    # episodes are a trial's 11th-13th: a policy trained on shorter trials never reached them.
+    episodes_per_trial: int = 13
     max_episode_steps: int = 500
     # Steps per update, and the length of the truncated BPTT.
     unroll: int = 50
@@ -106,7 +108,7 @@ class Config:
     # Scale the learning signal (value targets, advantages) by each train task's running return
     # std instead of one for all, as the PPO example does. The reward the policy sees keeps the
     # one scale (a per-task scale would give the task away).
-    per_task_returns: bool = False
+    per_task_returns: bool = True
     reward_version: str = "v2"
     seed: int = 0
     # The meta-test (the paper: 10 goals per test task, 10 adaptation and 3 evaluation episodes).

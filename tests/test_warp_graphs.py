@@ -115,9 +115,10 @@ print(after_one, graphs(), warp_graphs.bounded_sites())
 @pytest.mark.parametrize("mode", [None, "warp"])
 def test_the_adapters_graphs_do_not_grow_with_its_steps_on_the_gpu(mode):
     """Stepped from Python, the adapter's sites see new buffers at every call. In its default
-    (Warp's staged mode) each traced call site keeps one graph and replays it; in MJX's default
-    ("warp") the graphs Warp keeps stay at one per site the adapter bounds. Either way they must
-    not grow with the calls (default process settings)."""
+    (Warp's staged mode) each traced call site keeps one graph and replays it, so the count is
+    fixed after the first step; in MJX's default ("warp") the graphs Warp keeps stay at most one
+    per site the adapter bounds (a site first run in a later step, an autoreset say, adds its one:
+    3 then 4 on an H200 at f856f0e). Neither may grow with the calls (default process settings)."""
     env = {k: v for k, v in os.environ.items() if k != "MWJAX_WARP_GRAPHS_PER_SITE"}
     out = subprocess.run(
         [sys.executable, "-c", _ADAPTER_PROBE, *([mode] if mode else [])],
@@ -127,9 +128,10 @@ def test_the_adapters_graphs_do_not_grow_with_its_steps_on_the_gpu(mode):
         check=True,
     )
     after_one, after_five, sites = map(int, out.stdout.split()[-3:])
-    assert 0 < after_one == after_five
     if mode == "warp":
-        assert after_five <= sites
+        assert 0 < after_one <= after_five <= sites
+    else:
+        assert 0 < after_one == after_five
 
 
 @pytest.mark.gpu

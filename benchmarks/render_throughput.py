@@ -100,31 +100,28 @@ def measure(name: str, batch: int, size: int, args, device: str) -> dict:
     jax.block_until_ready(state.pixels)
 
     holder = {"state": state}
+
+    def rate(run, slot: str) -> tuple[float, float]:
+        """Env steps/s of the rollout `run` carried on from `holder[slot]`, and its compile time."""
+
+        def call():
+            holder[slot], total = run(holder[slot], key)
+            return total
+
+        seconds, compile_s = timed(call, repeats=args.repeats)
+        return n * args.steps / seconds, compile_s
+
     steps_per_s = compile_s = None
     if not args.render_only:
         log(f"[{name} batch {n} {size}x{size}] pixels rollout: compile + warm-up ...")
-        run = rollout(pixel_env.step, args.steps, n, pixels=True)
-
-        def pixel_call():
-            holder["state"], total = run(holder["state"], key)
-            return total
-
-        seconds, compile_s = timed(pixel_call, repeats=args.repeats)
-        steps_per_s = n * args.steps / seconds
+        steps_per_s, compile_s = rate(rollout(pixel_env.step, args.steps, n, pixels=True), "state")
         log(f"[{name} batch {n} {size}x{size}] {steps_per_s:,.0f} env steps/s with pixels")
 
     physics_steps_per_s = None
     if not args.no_baseline and not args.render_only:
         log(f"[{name} batch {n}] physics-only rollout ...")
-        plain = rollout(env.step, args.steps, n, pixels=False)
         holder["plain"] = jax.jit(env.reset)(key)
-
-        def plain_call():
-            holder["plain"], total = plain(holder["plain"], key)
-            return total
-
-        plain_seconds, _ = timed(plain_call, repeats=args.repeats)
-        physics_steps_per_s = n * args.steps / plain_seconds
+        physics_steps_per_s, _ = rate(rollout(env.step, args.steps, n, pixels=False), "plain")
         log(f"[{name} batch {n}] {physics_steps_per_s:,.0f} env steps/s without pixels")
     if not args.no_baseline:
         log(f"[{name} batch {n} {size}x{size}] render-only ...")

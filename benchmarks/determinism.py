@@ -5,7 +5,8 @@ whole episodes, autoreset included) and fingerprints every step on device: the b
 observations, rewards, success flags and every scene's qpos and qvel, mixed into a 32-bit integer
 per step with integer arithmetic only (whose sum does not depend on reduction order). The host
 hashes the per-step fingerprints (SHA-256). `--runs` processes run one after another, or with
-`--parallel` side by side, one GPU each (GPUs 0, 1, ...: the same model on one host); the script
+`--parallel` side by side, one GPU each (GPUs 0, 1, ..., or those `CUDA_VISIBLE_DEVICES` lists:
+the same model on one host; `0,0` puts both runs on GPU 0); the script
 reports whether all hashes agree, the first step where they part, and each run's rollout time, so
 that `--deterministic` (`MWJAX_DETERMINISTIC=1` in the children: `mwjax.determinism`) against the
 default gives both the answer and its cost.
@@ -26,6 +27,8 @@ import sys
 import time
 
 import numpy as np
+
+from mwjax import distributed
 
 
 def fingerprint(arrays: list) -> object:
@@ -144,11 +147,13 @@ def main() -> None:
     command += ["--steps", str(args.steps), "--seed", str(args.seed)]
     command += ["--rollouts", str(args.rollouts), "--chunk", str(args.chunk)]
     # stderr (progress, Warp's messages) passes through; stdout carries each run's result.
-    if subprocess.run([*command, "--build-only"], env=environ).returncode:
-        sys.exit("building the physics kernels failed; its messages are above")
-    runs = []
     visible = os.environ.get("CUDA_VISIBLE_DEVICES")
     gpus = visible.split(",") if visible else [str(i) for i in range(args.runs)]
+    # One GPU for the build: a list that names a GPU twice is not one CUDA accepts.
+    build_env = dict(environ, CUDA_VISIBLE_DEVICES=gpus[0]) if visible else environ
+    if subprocess.run([*command, "--build-only"], env=build_env).returncode:
+        sys.exit("building the physics kernels failed; its messages are above")
+    runs = []
     if args.parallel:
         if len(gpus) < args.runs:
             sys.exit(f"--parallel needs a GPU per run: {args.runs} runs, CUDA_VISIBLE_DEVICES={visible}")
@@ -158,7 +163,12 @@ def main() -> None:
             )
             for i in range(args.runs)
         ]
-        outputs = [(p.communicate()[0], p.returncode) for p in procs]
+        with distributed.sigterm_as_interrupt():  # `timeout` stops the runs too, not only this parent
+            try:
+                outputs = [(p.communicate()[0], p.returncode) for p in procs]
+            except KeyboardInterrupt:
+                distributed.stop(procs)
+                sys.exit("stopped: the runs were terminated before they finished")
     else:
         outputs = []
         for _ in range(args.runs):

@@ -145,11 +145,11 @@ def launch(command: Sequence[str], processes: int, cpu: bool = False) -> int:
                 break
             time.sleep(0.2)
     finally:
-        _stop(procs)
+        stop(procs)
     return code or next((p.returncode for p in procs if p.returncode), 0)
 
 
-def _stop(procs: Sequence[subprocess.Popen]) -> list[int]:
+def stop(procs: Sequence[subprocess.Popen]) -> list[int]:
     """Terminate the processes still running (SIGTERM, then SIGKILL after 30 s); their exit codes."""
     for p in procs:
         if p.poll() is None:
@@ -180,12 +180,12 @@ def run_independent(
     pending = list(range(len(commands)))
     running: dict[int, tuple[int, subprocess.Popen]] = {}  # slot -> (command, process)
     codes = [0] * len(commands)
-    with _sigterm_as_interrupt():
+    with sigterm_as_interrupt():
         try:
             _schedule(commands, logs, parallel, gpus, pending, running, codes)
         except KeyboardInterrupt:
             stopped = list(running.values())
-            for (i, _), code in zip(stopped, _stop([process for _, process in stopped]), strict=True):
+            for (i, _), code in zip(stopped, stop([process for _, process in stopped]), strict=True):
                 codes[i] = code
             for i in pending:
                 codes[i] = -int(signal.SIGTERM)
@@ -233,7 +233,7 @@ def _schedule(
 
 
 @contextlib.contextmanager
-def _sigterm_as_interrupt() -> Iterator[None]:
+def sigterm_as_interrupt() -> Iterator[None]:
     """SIGTERM raises KeyboardInterrupt inside the block (in the main thread; elsewhere no change)."""
     if threading.current_thread() is not threading.main_thread():
         yield

@@ -33,6 +33,7 @@ from mwjax import (
     host_call,
     progress,
     warp_ast,
+    warp_call_ids,
     warp_cpu_graphs,
     warp_empty_args,
     warp_equality,
@@ -48,6 +49,7 @@ warp_cpu_graphs.install()
 warp_graphs.install()
 warp_equality.install()
 warp_empty_args.install()
+warp_call_ids.install()
 progress.install()
 caches.configure()
 

@@ -13,7 +13,8 @@ can grow by a whole set of graphs at a time, up to 32 per callable.
 the graphs of its last K sets of buffer addresses, an older set's graph, with its scratch, is
 released before the new one is captured, and Warp's per-callable limit is lifted (it would evict
 graphs of sites in use when a callable has more than 32 sites). `bounded(K)` bounds only the sites
-traced inside it (Warp's per-callable limit stays): the Gymnasium adapter traces its jitted calls
+traced inside it (Warp's per-callable limit stays; a site is a call id, which programs with the
+same calls share, `mwjax.warp_call_ids`): the Gymnasium adapter traces its jitted calls
 so, with K=1, because a program called from Python step by step gets new temporary buffers at
 every call and so never replays a graph (measured: `docs/performance.md`, the adapter), while
 keeping up to 32 ran out of memory at 131k envs. The process-wide bound is off by default (0:
@@ -37,6 +38,8 @@ from collections.abc import Callable, Iterator
 from typing import Any, TypeVar
 
 from warp._src.jax import ffi
+
+from mwjax import warp_call_ids
 
 T = TypeVar("T")
 _lock = threading.Lock()
@@ -71,13 +74,12 @@ def bounded(limit: int) -> Iterator[None]:
     if limit < 1:
         raise ValueError(f"limit must be at least 1, got {limit}")
     install(force=True)
-    before = {id(c): c.call_id for c in ffi._FFI_CALLABLE_REGISTRY.values()}
-    try:
-        yield
-    finally:
-        with _lock:
-            for c in ffi._FFI_CALLABLE_REGISTRY.values():
-                for call_id in range(before.get(id(c), 0), c.call_id):
+    with warp_call_ids.issued(f"bounded to {limit}") as sites:
+        try:
+            yield
+        finally:
+            with _lock:
+                for c, call_id in sites:
                     _site_limits[id(c), call_id] = limit
 
 
@@ -93,9 +95,9 @@ def stepped_from_python(function: Callable[..., T]) -> Callable[..., T]:
     return call
 
 
-def bounded_sites() -> int:
-    """How many call sites `bounded` has bounded in this process."""
-    return len(_site_limits)
+def bounded_sites() -> set[tuple[int, int]]:
+    """The call sites `bounded` has bounded in this process: (id of the Warp callable, call id)."""
+    return set(_site_limits)
 
 
 def install(force: bool = False) -> None:

@@ -7,7 +7,7 @@ import sys
 
 import pytest
 
-from mwjax import warp_graphs
+from mwjax import warp_call_ids, warp_graphs
 
 
 def test_a_site_keeps_its_latest_buffer_sets():
@@ -37,7 +37,7 @@ def test_the_limit_is_read_from_the_environment(monkeypatch):
 _PROBE = """
 import jax
 import mwjax
-from mwjax import warp_graphs
+from mwjax import warp_call_ids, warp_graphs
 env = mwjax.make("MT1:reach-v3", envs_per_task=64)
 step = jax.jit(env.step)
 state = jax.jit(env.reset)(jax.random.key(0))
@@ -63,24 +63,27 @@ def test_steps_from_states_at_new_addresses_keep_one_graph_per_site():
 
 def test_the_adapter_bounds_the_sites_it_traces_and_only_those():
     """The Gymnasium adapter's jitted calls get one graph per Warp call site (`bounded`): every
-    site traced by its first step is marked, a site traced outside the adapter is not."""
+    site its reset and step trace is marked; the same env's step traced outside it is not,
+    though its calls are the same (their ids differ: `warp_call_ids.issued`)."""
     import jax
 
     import mwjax
     from mwjax.wrappers.gymnasium import make_vector
 
-    before = warp_graphs.bounded_sites()
-    envs = make_vector("MT1", task="reach-v3", num_envs=1, array_type="jax")
-    envs.reset(seed=0)
-    after_reset = warp_graphs.bounded_sites()
-    envs.step(jax.numpy.zeros((1, 4)))
-    after_step = warp_graphs.bounded_sites()
-    assert before < after_reset < after_step  # reset's kinematics, then the step's calls
+    def sites(issued: list) -> set[tuple[int, int]]:
+        return {(id(c), call_id) for c, call_id in issued}
 
-    env = mwjax.make("MT1:reach-v3", envs_per_task=1)
-    state = jax.jit(env.reset)(jax.random.key(0))
-    jax.block_until_ready(jax.jit(env.step)(state, jax.numpy.zeros((1, 4))))
-    assert warp_graphs.bounded_sites() == after_step
+    with warp_call_ids.issued("") as adapter:
+        envs = make_vector("MT1", task="reach-v3", num_envs=1, array_type="jax")
+        envs.reset(seed=0)
+        envs.step(jax.numpy.zeros((1, 4)))
+    assert sites(adapter) and sites(adapter) <= warp_graphs.bounded_sites()
+
+    with warp_call_ids.issued("") as outside:
+        env = mwjax.make("MT1:reach-v3", envs_per_task=1)
+        state = jax.jit(env.reset)(jax.random.key(0))
+        jax.block_until_ready(jax.jit(env.step)(state, jax.numpy.zeros((1, 4))))
+    assert sites(outside) and not sites(outside) & warp_graphs.bounded_sites()
     with pytest.raises(ValueError, match="at least 1"):
         with warp_graphs.bounded(0):
             pass
@@ -91,7 +94,7 @@ import sys
 import jax
 from warp._src.jax import ffi
 import mwjax
-from mwjax import warp_graphs
+from mwjax import warp_call_ids, warp_graphs
 from mwjax.wrappers.gymnasium import make_vector
 mode = sys.argv[1] if len(sys.argv) > 1 else None
 physics = None if mode is None else mwjax.PhysicsConfig(graph_mode=mode)
@@ -107,7 +110,7 @@ jax.block_until_ready(envs.step(actions))
 after_one = graphs()
 for _ in range(4):
     jax.block_until_ready(envs.step(actions))
-print(after_one, graphs(), warp_graphs.bounded_sites())
+print(after_one, graphs(), len(warp_graphs.bounded_sites()))
 """
 
 

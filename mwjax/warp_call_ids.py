@@ -1,0 +1,128 @@
+"""Gives MJX-Warp's call sites ids that do not depend on what the process traced before.
+
+Warp's FFI callable numbers its call sites with a per-process counter and writes the number into
+the program as the call's `call_id` attribute, which its callback uses to find the site's static
+inputs (and, in the graph modes, its captured graphs). The number is part of the compiled
+program, and so of the key of JAX's persistent compilation cache: the same step traced after
+other programs, in another script, another test order or after one more test, gets other
+numbers, and every process compiles it afresh (measured: docs/performance.md).
+
+`install()` numbers a call site instead by what it is: the Warp callable, its static inputs, its
+arrays' shapes and dtypes, and how many calls of that same kind the program traced before it. One
+program's sites keep distinct ids, as with Warp's counter, while the same program traced again,
+in this process or another, gets the same ids and the same cache key. Programs whose calls
+coincide share ids and with them the site's record (Warp's static inputs, a staged graph, a CPU
+replay's staging arrays, `warp_graphs`' per-site bound); all of these describe the same call with
+the same static inputs, and the programs of one device run one after the other.
+`MWJAX_STABLE_CALL_IDS=0` keeps Warp's counter.
+"""
+
+from __future__ import annotations
+
+import collections
+import contextlib
+import hashlib
+import os
+import threading
+import weakref
+from collections.abc import Iterator
+from typing import Any
+
+from jax._src import core
+from warp._src.jax import ffi
+
+_lock = threading.Lock()
+# Per outermost trace (one program being traced): calls of each kind traced so far.
+_counts: weakref.WeakKeyDictionary[Any, collections.Counter[str]] = weakref.WeakKeyDictionary()
+# Open `issued()` blocks: each one's tag and the (callable, call id) pairs traced inside it.
+_collectors: list[tuple[str, list[tuple[ffi.FfiCallable, int]]]] = []
+
+
+def enabled() -> bool:
+    """Whether call ids are stable (`MWJAX_STABLE_CALL_IDS`, on unless "0")."""
+    return os.environ.get("MWJAX_STABLE_CALL_IDS", "1") != "0"
+
+
+def install() -> None:
+    """Patch Warp's `FfiCallable.__call__` (idempotent: the patch marks itself)."""
+    call = ffi.FfiCallable.__call__
+    if getattr(call, "mwjax_stable_ids", False):
+        return
+
+    def with_stable_id(self: ffi.FfiCallable, *args: Any, **kwargs: Any) -> Any:
+        if not enabled():
+            before = self.call_id
+            result = call(self, *args, **kwargs)
+            _collect(self, range(before, self.call_id))
+            return result
+        with _lock:
+            kind = _kind(self, args, kwargs)
+            counts = _program_counts()
+            site = _site_id(kind, counts[kind])
+            counts[kind] += 1
+            recorded = self.call_descriptors.get(site)
+            self.call_id = site
+            try:
+                result = call(self, *args, **kwargs)
+            finally:
+                # Warp registered a fresh record under `site`: an earlier trace's, with its
+                # graphs and staging arrays, describes the same call and is kept instead.
+                if recorded is not None:
+                    self.call_descriptors[site] = recorded
+        _collect(self, [site])
+        return result
+
+    with_stable_id.mwjax_stable_ids = True  # type: ignore[attr-defined]
+    ffi.FfiCallable.__call__ = with_stable_id
+
+
+@contextlib.contextmanager
+def issued(tag: str) -> Iterator[list[tuple[ffi.FfiCallable, int]]]:
+    """Collects the (callable, call id) of every Warp call traced inside the block. The calls'
+    ids also depend on `tag`, so that what is done to these sites (`warp_graphs.bounded`) does
+    not reach the same calls traced elsewhere; with the empty tag the ids are left as they are."""
+    install()
+    block: tuple[str, list[tuple[ffi.FfiCallable, int]]] = (tag, [])
+    with _lock:
+        _collectors.append(block)
+    try:
+        yield block[1]
+    finally:
+        with _lock:
+            _collectors.remove(block)
+
+
+def _collect(callable_: ffi.FfiCallable, ids: Any) -> None:
+    with _lock:
+        for _, sites in _collectors:
+            sites.extend((callable_, i) for i in ids)
+
+
+def _kind(self: ffi.FfiCallable, args: tuple, kwargs: dict) -> str:
+    """What identifies a call of `self` apart from its place in the program."""
+    parts: list[Any] = [self.name, sorted(kwargs.items()), [tag for tag, _ in _collectors if tag]]
+    for arg, value in zip(self.input_args, args, strict=False):
+        if arg.is_array:
+            parts.append((tuple(value.shape), str(value.dtype)))
+        else:
+            parts.append(repr(value))
+    return repr(parts)
+
+
+def _program_counts() -> collections.Counter[str]:
+    """The call counts of the program being traced: that of the outermost trace (a jit, scan or
+    cond body inside it counts with it). Outside any trace a call runs at once, alone, and
+    every eager call of a kind gets the same id."""
+    trace = core.trace_ctx.trace
+    outermost = None
+    while trace is not None and not isinstance(trace, core.EvalTrace):
+        outermost = trace
+        trace = getattr(trace, "parent_trace", None)
+    if outermost is None:
+        return collections.Counter()
+    return _counts.setdefault(outermost, collections.Counter())
+
+
+def _site_id(kind: str, index: int) -> int:
+    digest = hashlib.blake2b(f"{kind}#{index}".encode(), digest_size=8).digest()
+    return int.from_bytes(digest, "little") >> 1  # a non-negative int64

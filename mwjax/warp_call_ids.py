@@ -1,13 +1,18 @@
-"""Gives MJX-Warp's call sites ids that do not depend on what the process traced before.
+"""Gives MJX-Warp's call sites ids and names that do not depend on what the process did before.
 
 Warp's FFI callable numbers its call sites with a per-process counter and writes the number into
 the program as the call's `call_id` attribute, which its callback uses to find the site's static
-inputs (and, in the graph modes, its captured graphs). The number is part of the compiled
+inputs (and, in the graph modes, its captured graphs); it names each callable, the program's FFI
+target, after its function and a per-process count of callables made for functions of that name
+(MJX-Warp makes one per scene, batch shape and graph mode). Both are part of the compiled
 program, and so of the key of JAX's persistent compilation cache: the same step traced after
 other programs, in another script, another test order or after one more test, gets other
 numbers, and every process compiles it afresh (measured: docs/performance.md).
 
-`install()` numbers a call site instead by what it is: the Warp callable, its static inputs, its
+`install()` names a callable by its function, what the function closes over and the callable's
+options (a count is appended only if two different callables come to the same name).
+
+It numbers a call site by what it is: the Warp callable, its static inputs, its
 arrays' shapes and dtypes, and how many calls of that same kind the program traced before it. One
 program's sites keep distinct ids, as with Warp's counter, while the same program traced again,
 in this process or another, gets the same ids and the same cache key. Programs whose calls
@@ -22,6 +27,7 @@ from __future__ import annotations
 import collections
 import contextlib
 import hashlib
+import inspect
 import os
 import threading
 import weakref
@@ -34,6 +40,9 @@ from warp._src.jax import ffi
 _lock = threading.Lock()
 # Per outermost trace (one program being traced): calls of each kind traced so far.
 _counts: weakref.WeakKeyDictionary[Any, collections.Counter[str]] = weakref.WeakKeyDictionary()
+# Names given to Warp callables in this process, and the one the callable being made gets.
+_names: set[str] = set()
+_making = threading.local()
 # Open `issued()` blocks: each one's tag and the (callable, call id) pairs traced inside it.
 _collectors: list[tuple[str, list[tuple[ffi.FfiCallable, int]]]] = []
 
@@ -44,10 +53,27 @@ def enabled() -> bool:
 
 
 def install() -> None:
-    """Patch Warp's `FfiCallable.__call__` (idempotent: the patch marks itself)."""
+    """Patch Warp's `FfiCallable.__init__` and `__call__` (idempotent: the patch marks itself)."""
     call = ffi.FfiCallable.__call__
     if getattr(call, "mwjax_stable_ids", False):
         return
+    init = ffi.FfiCallable.__init__
+    signature = inspect.signature(init)
+    unique_name = ffi.generate_unique_name
+
+    def with_stable_name(self: ffi.FfiCallable, *args: Any, **kwargs: Any) -> None:
+        options = signature.bind(self, *args, **kwargs).arguments
+        _making.name = _stable_name(options) if enabled() else None
+        try:
+            init(self, *args, **kwargs)
+        finally:
+            _making.name = None
+
+    def named(func: Any) -> str:
+        return getattr(_making, "name", None) or unique_name(func)
+
+    ffi.FfiCallable.__init__ = with_stable_name
+    ffi.generate_unique_name = named
 
     def with_stable_id(self: ffi.FfiCallable, *args: Any, **kwargs: Any) -> Any:
         if not enabled():
@@ -96,6 +122,32 @@ def _collect(callable_: ffi.FfiCallable, ids: Any) -> None:
     with _lock:
         for _, sites in _collectors:
             sites.extend((callable_, i) for i in ids)
+
+
+def _stable_name(options: dict[str, Any]) -> str:
+    """A callable's FFI target name from its function (with what the function closes over: MJX
+    wraps each MJWarp function in a local one) and its options; unique in the process."""
+    func = options["func"]
+    cells = [_describe(cell.cell_contents) for cell in getattr(func, "__closure__", None) or ()]
+    parts = [cells] + [repr(v) for k, v in options.items() if k not in ("self", "func", "graph_cache_max")]
+    digest = hashlib.blake2b(repr(parts).encode(), digest_size=6).hexdigest()
+    base = f"{ffi.make_full_qualified_name(func)}_{digest}"
+    with _lock:
+        name, count = base, 0
+        while name in _names:
+            count += 1
+            name = f"{base}_{count}"
+        _names.add(name)
+    return name
+
+
+def _describe(value: Any) -> str:
+    """What a closure holds, in words that are the same in every process (no addresses)."""
+    if hasattr(value, "__qualname__") and hasattr(value, "__module__"):
+        return f"{value.__module__}.{value.__qualname__}"
+    if isinstance(value, int | float | str | bool | type(None) | inspect.Signature):
+        return repr(value)
+    return type(value).__qualname__ + (str(value) if type(value).__name__ == "PyTreeDef" else "")
 
 
 def _kind(self: ffi.FfiCallable, args: tuple, kwargs: dict) -> str:

@@ -1,6 +1,9 @@
 """Warp call ids that do not depend on what was traced before (`mwjax.warp_call_ids`)."""
 
+import hashlib
 import re
+import subprocess
+import sys
 
 import jax
 import jax.numpy as jnp
@@ -18,20 +21,28 @@ def _call_ids(program: str) -> list[str]:
     return re.findall(r"call_id = (\d+)", program)
 
 
+_OTHER_ORDER = """
+import hashlib, jax, jax.numpy as jnp, mwjax
+def program(env):
+    state = jax.eval_shape(env.reset, jax.random.key(0))
+    return jax.jit(lambda s, a: env.step(s, a)).lower(state, jnp.zeros((env.num_envs, 4))).as_text()
+program(mwjax.make("MT1:push-v3", envs_per_task=1))
+print(hashlib.sha256(program(mwjax.make("MT1:reach-v3", envs_per_task=1)).encode()).hexdigest())
+"""
+
+
 def test_a_program_is_the_same_whatever_was_traced_before_it(monkeypatch):
-    """The same step lowered before and after another scene's step: the same program, hence the
-    same key in JAX's persistent cache. With Warp's counter the ids, and the program, differ."""
+    """Reach's step, lowered here and in a process that traced push's step first: the same
+    program (Warp's FFI target names and call ids included), hence the same key in JAX's
+    persistent cache. With Warp's counter, a second trace in one process already differs."""
     reach = mwjax.make("MT1:reach-v3", envs_per_task=1)
-    push = mwjax.make("MT1:push-v3", envs_per_task=1)
-    first = _step_program(reach)
-    _step_program(push)
-    again = _step_program(reach)
-    assert _call_ids(first)
-    assert again == first
+    here = _step_program(reach)
+    assert _call_ids(here)
+    out = subprocess.run([sys.executable, "-c", _OTHER_ORDER], capture_output=True, text=True, check=True)
+    assert out.stdout.split()[-1] == hashlib.sha256(here.encode()).hexdigest()
 
     monkeypatch.setenv("MWJAX_STABLE_CALL_IDS", "0")
-    counted = _step_program(reach)
-    assert _call_ids(counted) != _call_ids(first)
+    assert _call_ids(_step_program(reach)) != _call_ids(here)
 
 
 def test_the_calls_of_one_program_keep_distinct_ids():

@@ -19,7 +19,7 @@ in this process or another, gets the same ids and the same cache key. Programs w
 coincide share ids and with them the site's record (Warp's static inputs, a staged graph, a CPU
 replay's staging arrays, `warp_graphs`' per-site bound); all of these describe the same call with
 the same static inputs, and the programs of one device run one after the other.
-`MWJAX_STABLE_CALL_IDS=0` keeps Warp's counter.
+`MWJAX_STABLE_CALL_IDS=0` keeps Warp's counters, for ids and names.
 """
 
 from __future__ import annotations
@@ -48,7 +48,7 @@ _collectors: list[tuple[str, list[tuple[ffi.FfiCallable, int]]]] = []
 
 
 def enabled() -> bool:
-    """Whether call ids are stable (`MWJAX_STABLE_CALL_IDS`, on unless "0")."""
+    """Whether call ids and names are stable (`MWJAX_STABLE_CALL_IDS`, on unless "0")."""
     return os.environ.get("MWJAX_STABLE_CALL_IDS", "1") != "0"
 
 

@@ -37,7 +37,7 @@ def test_the_limit_is_read_from_the_environment(monkeypatch):
 _PROBE = """
 import jax
 import mwjax
-from mwjax import warp_call_ids, warp_graphs
+from mwjax import warp_graphs
 env = mwjax.make("MT1:reach-v3", envs_per_task=64)
 step = jax.jit(env.step)
 state = jax.jit(env.reset)(jax.random.key(0))

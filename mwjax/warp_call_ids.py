@@ -34,6 +34,7 @@ import weakref
 from collections.abc import Iterator
 from typing import Any
 
+import jax
 from jax._src import core
 from warp._src.jax import ffi
 
@@ -147,7 +148,7 @@ def _describe(value: Any) -> str:
         return f"{value.__module__}.{value.__qualname__}"
     if isinstance(value, int | float | str | bool | type(None) | inspect.Signature):
         return repr(value)
-    return type(value).__qualname__ + (str(value) if type(value).__name__ == "PyTreeDef" else "")
+    return type(value).__qualname__ + (str(value) if isinstance(value, jax.tree_util.PyTreeDef) else "")
 
 
 def _kind(self: ffi.FfiCallable, args: tuple, kwargs: dict) -> str:

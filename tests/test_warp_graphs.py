@@ -94,7 +94,7 @@ import sys
 import jax
 from warp._src.jax import ffi
 import mwjax
-from mwjax import warp_call_ids, warp_graphs
+from mwjax import warp_graphs
 from mwjax.wrappers.gymnasium import make_vector
 mode = sys.argv[1] if len(sys.argv) > 1 else None
 physics = None if mode is None else mwjax.PhysicsConfig(graph_mode=mode)
@@ -120,8 +120,8 @@ def test_the_adapters_graphs_do_not_grow_with_its_steps_on_the_gpu(mode):
     """Stepped from Python, the adapter's sites see new buffers at every call. In its default
     (Warp's staged mode) each traced call site keeps one graph and replays it, so the count is
     fixed after the first step; in MJX's default ("warp") the graphs Warp keeps stay at most one
-    per site the adapter bounds (a site first run in a later step, an autoreset say, adds its one:
-    3 then 4 on an H200 at f856f0e). Neither may grow with the calls (default process settings)."""
+    per site the adapter bounds (a site first run in a later step, an autoreset say, adds its
+    one). Neither may grow with the calls (default process settings)."""
     env = {k: v for k, v in os.environ.items() if k != "MWJAX_WARP_GRAPHS_PER_SITE"}
     out = subprocess.run(
         [sys.executable, "-c", _ADAPTER_PROBE, *([mode] if mode else [])],

@@ -13,12 +13,15 @@ numbers, and every process compiles it afresh (measured: docs/performance.md).
 options (a count is appended only if two different callables come to the same name).
 
 It numbers a call site by what it is: the Warp callable, its static inputs, its
-arrays' shapes and dtypes, and how many calls of that same kind the program traced before it. One
-program's sites keep distinct ids, as with Warp's counter, while the same program traced again,
-in this process or another, gets the same ids and the same cache key. Programs whose calls
-coincide share ids and with them the site's record (Warp's static inputs, a staged graph, a CPU
-replay's staging arrays, `warp_graphs`' per-site bound); all of these describe the same call with
-the same static inputs, and the programs of one device run one after the other.
+arrays' shapes and dtypes, and how many calls of that same kind the program traced before it.
+Calls traced in one program get distinct ids, as with Warp's counter, while the same program
+traced again, in this process or another, gets the same ids and the same cache key. An id is
+written into the trace, so a trace JAX caches and reuses (it may reuse the trace of an MJX
+function, even in another program) brings its ids along, under either scheme. One id may so
+stand for several sites, always of one kind, and they share the site's record (Warp's static
+inputs, a staged graph, a CPU replay's staging arrays, `warp_graphs`' per-site bound): all of
+these describe the same call with the same static inputs, and a device runs the calls one after
+the other (on the CPU, Warp's callbacks hold one lock).
 `MWJAX_STABLE_CALL_IDS=0` keeps Warp's counters, for ids and names.
 """
 

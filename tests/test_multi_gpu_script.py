@@ -5,10 +5,11 @@ from __future__ import annotations
 
 import importlib.util
 import json
-import subprocess
+import os
 import sys
 from pathlib import Path
 
+import children
 import pytest
 
 BENCHMARKS = Path(__file__).parents[1] / "benchmarks"
@@ -42,14 +43,17 @@ def test_processes_sharing_a_gpu_split_the_memory_share_they_were_given(multi_gp
     assert float(multi_gpu.mem_fraction(3)) == pytest.approx(0.2)
 
 
-def test_one_process_per_device_reports_one_row_per_count(tmp_path):
-    out = tmp_path / "multi-gpu.json"
+def _one_process_per_device(workdir: Path) -> tuple[list[str], dict[str, str]]:
     command = [sys.executable, str(BENCHMARKS / "multi_gpu.py"), "--set", "MT1:reach-v3", "--cpu"]
     command += ["--envs-per-task", "2", "--steps", "3", "--devices", "1", "2", "--processes"]
-    command += ["--out", str(out)]
-    result = subprocess.run(command, capture_output=True, text=True, timeout=600)
+    return [*command, "--out", str(workdir / "multi-gpu.json")], dict(os.environ)
+
+
+@pytest.mark.child.with_args(_one_process_per_device)
+def test_one_process_per_device_reports_one_row_per_count(request):
+    result, workdir = children.result(request.node)
     assert result.returncode == 0, result.stderr[-4000:]
-    summary = json.loads(out.read_text())
+    summary = json.loads((workdir / "multi-gpu.json").read_text())
     assert summary["processes"] and summary["valid"] and summary["device_counts"] == [1, 2]
     assert [r["processes"] for r in summary["results"]] == [1, 2]  # the 2-device count ran in 2
     assert [r["num_envs"] for r in summary["results"]] == [2, 4]

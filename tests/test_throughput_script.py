@@ -3,22 +3,30 @@
 from __future__ import annotations
 
 import json
-import subprocess
+import os
 import sys
 from pathlib import Path
+
+import children
+import pytest
 
 SCRIPT = Path(__file__).parents[1] / "benchmarks" / "throughput.py"
 
 
-def test_a_row_with_overflow_is_refused_and_a_shorter_rollout_is_labelled(tmp_path):
-    out = tmp_path / "row.json"
+def _refused_row(workdir: Path) -> tuple[list[str], dict[str, str]]:
     command = [sys.executable, str(SCRIPT), "--sets", "reach-v3", "--batch", "2", "--steps", "3"]
-    run = subprocess.run([*command, "--constraints", "4", "--out", str(out)], capture_output=True, text=True)
+    return [*command, "--constraints", "4", "--out", str(workdir / "row.json")], dict(os.environ)
+
+
+@pytest.mark.child.with_args(_refused_row)
+def test_a_row_with_overflow_is_refused_and_a_shorter_rollout_is_labelled(request):
+    run, workdir = children.result(request.node)
     assert run.returncode != 0, run.stdout + run.stderr
     assert "refused" in run.stderr
-    (row,) = json.loads(out.read_text())["results"]
+    result = json.loads((workdir / "row.json").read_text())
+    (row,) = result["results"]
     assert row["env_steps_per_s"] is None
     assert row["overflow_envs"] == 2
     assert row["protocol"] == "labelled: 3-step rollouts; constraints_per_env=4"
     for key in ("device", "commit", "date", "command"):
-        assert json.loads(out.read_text())[key]
+        assert result[key]

@@ -1,12 +1,15 @@
 """Warp call ids that do not depend on what was traced before (`mwjax.warp_call_ids`)."""
 
 import hashlib
+import os
 import re
-import subprocess
 import sys
+from pathlib import Path
 
+import children
 import jax
 import jax.numpy as jnp
+import pytest
 import warp as wp
 
 import mwjax
@@ -32,14 +35,20 @@ print(hashlib.sha256(program(mwjax.make("MT1:reach-v3", envs_per_task=1)).encode
 """
 
 
-def test_a_program_is_the_same_whatever_was_traced_before_it(monkeypatch):
+def _other_order(workdir: Path) -> tuple[list[str], dict[str, str]]:
+    return [sys.executable, "-c", _OTHER_ORDER], dict(os.environ)
+
+
+@pytest.mark.child.with_args(_other_order)
+def test_a_program_is_the_same_whatever_was_traced_before_it(request, monkeypatch):
     """Reach's step, lowered here and in a process that traced push's step first: the same
     program (Warp's FFI target names and call ids included), hence the same key in JAX's
     persistent cache. With Warp's counter, tracing it again in one process already differs."""
     reach = mwjax.make("MT1:reach-v3", envs_per_task=1)
     here = _step_program(reach)
     assert _call_ids(here)
-    out = subprocess.run([sys.executable, "-c", _OTHER_ORDER], capture_output=True, text=True, check=True)
+    out, _ = children.result(request.node)
+    assert out.returncode == 0, out.stderr[-4000:]
     assert out.stdout.split()[-1] == hashlib.sha256(here.encode()).hexdigest()
 
     monkeypatch.setenv("MWJAX_STABLE_CALL_IDS", "0")

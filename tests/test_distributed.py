@@ -87,6 +87,7 @@ def _rollouts(out: Path) -> None:
     """In each launched process: the sharded and the unsharded rollout; process 0 saves them."""
     assert distributed.initialize()
     import jax
+    from jax._src import distributed as jax_distributed
     from jax.experimental import multihost_utils
 
     import mwjax
@@ -108,7 +109,12 @@ def _rollouts(out: Path) -> None:
 
         return jax.lax.scan(body, env.reset(jax.random.key(0)), actions)[1]
 
-    sharded = multihost_utils.process_allgather(jax.jit(lambda a: rollout(env, a))(actions), tiled=True)
+    sharded = jax.block_until_ready(jax.jit(lambda a: rollout(env, a))(actions))
+    # Gloo gives a process 30 s to meet the other at its first collective (the allgather); under
+    # load (the suite's other children) one process came more than 30 s after the other. The
+    # coordination service's barrier waits as long as it is told.
+    jax_distributed.global_state.client.wait_at_barrier("mwjax-allgather", 600_000)
+    sharded = multihost_utils.process_allgather(sharded, tiled=True)
     alone = env.replace(devices=None)
     unsharded = jax.device_get(jax.jit(lambda a: rollout(alone, a))(actions[:, np.argsort(env.row_order)]))
     if distributed.is_main():

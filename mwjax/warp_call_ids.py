@@ -165,18 +165,24 @@ def _kind(self: ffi.FfiCallable, args: tuple, kwargs: dict) -> str:
     return repr(parts)
 
 
+def trace_chain() -> list[core.Trace]:
+    """The traces open around the current call, innermost first (empty outside any trace)."""
+    chain = []
+    trace = core.trace_ctx.trace
+    while trace is not None and not isinstance(trace, core.EvalTrace):
+        chain.append(trace)
+        trace = getattr(trace, "parent_trace", None)
+    return chain
+
+
 def _program_counts() -> collections.Counter[str]:
     """The call counts of the program being traced: that of the outermost trace (a jit, scan or
     cond body inside it counts with it). Outside any trace a call runs at once, alone, and
     every eager call of a kind gets the same id."""
-    trace = core.trace_ctx.trace
-    outermost = None
-    while trace is not None and not isinstance(trace, core.EvalTrace):
-        outermost = trace
-        trace = getattr(trace, "parent_trace", None)
-    if outermost is None:
+    chain = trace_chain()
+    if not chain:
         return collections.Counter()
-    return _counts.setdefault(outermost, collections.Counter())
+    return _counts.setdefault(chain[-1], collections.Counter())
 
 
 def _site_id(kind: str, index: int) -> int:

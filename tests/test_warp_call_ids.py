@@ -13,6 +13,7 @@ import pytest
 import warp as wp
 
 import mwjax
+from mwjax import warp_call_ids
 
 
 def _step_program(env: mwjax.Env) -> str:
@@ -63,7 +64,7 @@ def _copy(x: wp.array(dtype=wp.float32), y: wp.array(dtype=wp.float32)) -> None:
 def test_calls_of_one_kind_are_numbered_within_their_program():
     """Two calls of one Warp callable with the same shapes in one program: two ids, as with
     Warp's counter. The same call in another program: the first id again."""
-    mwjax.make("MT1:reach-v3", envs_per_task=1)  # installs the ids, as any env does
+    warp_call_ids.install()  # as making any env does
     copy = wp.jax_callable(_copy, graph_mode=wp.JaxCallableGraphMode.NONE)
     x = jax.ShapeDtypeStruct((3,), jnp.float32)
     twice = _call_ids(jax.jit(lambda v: copy(copy(v)[0])[0]).lower(x).as_text())

@@ -14,28 +14,18 @@ from typing import Any
 
 import jax
 import jax.numpy as jnp
-from jax._src import core
 from warp._src.jax import ffi
 
 import mwjax
 from mwjax import warp_call_ids
 
 
-def _traces() -> list[str]:
-    trace, chain = core.trace_ctx.trace, []
-    while trace is not None and not isinstance(trace, core.EvalTrace):
-        chain.append(f"{type(trace).__name__}@{id(trace) % 100000}")
-        trace = getattr(trace, "parent_trace", None)
-    return chain
-
-
 def main() -> None:
-    env = mwjax.make("MT1:reach-v3", envs_per_task=1)
-    warp_call_ids.install()
+    env = mwjax.make("MT1:reach-v3", envs_per_task=1)  # installs warp_call_ids
     call = ffi.FfiCallable.__call__
 
     def logged(self: ffi.FfiCallable, *args: Any, **kwargs: Any) -> Any:
-        chain = _traces()
+        chain = [f"{type(t).__name__}@{id(t) % 100000}" for t in warp_call_ids.trace_chain()]
         out = call(self, *args, **kwargs)
         frames = [f"{f.name}:{f.lineno}" for f in traceback.extract_stack()[:-1] if "/mwjax/" in f.filename]
         print(f"CALL {self.name[-14:]} id={self.call_id} traces={chain} mwjax={frames[-4:]}")

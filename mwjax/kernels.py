@@ -3,11 +3,12 @@
 Warp compiles a kernel module the first time a model of a new structure launches it, and MJWarp
 specializes its modules per scene (degrees of freedom, geom-type pairs, collider settings), so a
 fresh machine's first MT50 step compiles tens of modules one after another, tens of seconds some
-of them. `build(tasks)` compiles them side by side instead: one process per scene steps MJWarp
-directly, one world, no JAX, into Warp's kernel cache (`~/.cache/warp`, or `WARP_CACHE_PATH`),
-where the env's first step then finds them. The scenes are prepared exactly as `mwjax.make`
-prepares them (same mocap bodies, same physics settings, mwjax's Warp patches installed), which is
-what makes the cached modules the ones the env asks for.
+of them. `build(tasks)` compiles them side by side instead: a dry run of each scene's MJWarp step
+(one world, no JAX, no kernel launched) lists the modules it would load, and a pool of processes
+compiles each distinct module once into Warp's kernel cache (`~/.cache/warp`, or
+`WARP_CACHE_PATH`), where the env's first step then finds them. The scenes are prepared exactly as
+`mwjax.make` prepares them (same mocap bodies, same physics settings, mwjax's Warp patches
+installed), which is what makes the cached modules the ones the env asks for.
 
     python -m mwjax.kernels MT50 --workers 16
 
@@ -19,14 +20,17 @@ from __future__ import annotations
 
 import argparse
 import concurrent.futures
+import contextlib
 import dataclasses
 import functools
 import hashlib
+import inspect
 import multiprocessing
 import os
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
+from typing import Any
 
 import mujoco
 import mujoco.mjx.third_party.mujoco_warp as mjwarp
@@ -115,27 +119,119 @@ def _sources_digest() -> str:
 
 
 def _build_all(todo: Sequence[Scene], config: PhysicsConfig, workers: int) -> int:
+    """Compile each module that the scenes' steps launch once, `workers` processes at a time.
+
+    Scenes share most of their modules, so stepping each scene in a process of its own would
+    compile the shared ones in every process at once. A dry run of every scene in this process
+    (`launched_modules`: no kernel runs, nothing compiles) lists the distinct modules instead,
+    and each becomes one task for the pool."""
+    tasks: dict[str, Scene] = {}
+    for scene, bodies in todo:
+        for identifier in launched_modules(scene, bodies, config):
+            tasks.setdefault(identifier, (scene, bodies))
     spawn = multiprocessing.get_context("spawn")
     built = 0
     with concurrent.futures.ProcessPoolExecutor(workers, mp_context=spawn) as pool:
-        futures = [pool.submit(_build_scene, scene, bodies, config) for scene, bodies in todo]
+        futures = [
+            pool.submit(_compile_module, scene, bodies, config, identifier)
+            for identifier, (scene, bodies) in tasks.items()
+        ]
         for future in concurrent.futures.as_completed(futures):
             built += future.result()
     return built
 
 
-def _build_scene(scene: str, mocap_bodies: tuple[str, ...], config: PhysicsConfig) -> int:
-    """Step one world of the scene once through MJWarp (its step and kinematics), which compiles
-    or loads every module a step of it launches; returns how many it compiled."""
-    os.environ["MWJAX_PROGRESS"] = "0"  # the parent reports; workers stay quiet
+Launch = tuple[warp.Module, warp.Device, int]
+
+
+def launched_modules(scene: str, mocap_bodies: tuple[str, ...], config: PhysicsConfig) -> dict[str, Launch]:
+    """Every Warp module that one step and one kinematics call of the scene launch (in this
+    process, on Warp's preferred device), by Warp's module identifier (its name, hash and block
+    size: its folder in Warp's cache), with the device and block size it launches with.
+
+    The scene's model and data are made as `mwjax.make` makes them and MJWarp's step runs with
+    Warp's launches recorded instead of run (`_recording_launches`), so its kernel builders make
+    the modules a real step would load, and nothing compiles. `tests/test_kernels.py` checks the
+    list against the modules a real step loads."""
     model = warp_model(scene, mocap_bodies, config)
     device_model = mjwarp.put_model(model)
     device_model.opt.warn_overflow = 0  # as `mwjax.physics` runs it: the kernel variant without printf
-    data = mjwarp.make_data(model, nworld=1, naconmax=config.contacts_per_env, njmax=constraint_rows(scene))
-    mjwarp.step(device_model, data)
-    mjwarp.kinematics(device_model, data)
-    warp.synchronize()
-    return progress.kernel_builds().built
+    launches: list[Launch] = []
+    with _recording_launches(launches):
+        data = mjwarp.make_data(
+            model, nworld=1, naconmax=config.contacts_per_env, njmax=constraint_rows(scene)
+        )
+        mjwarp.step(device_model, data)
+        mjwarp.kinematics(device_model, data)
+    return {
+        module.get_module_identifier(block_dim=block_dim): (module, device, block_dim)
+        for module, device, block_dim in launches
+    }
+
+
+@contextlib.contextmanager
+def _recording_launches(launches: list[Launch]) -> Iterator[None]:
+    """Within the block, `warp.launch` and `warp.launch_tiled` append (module, device, block size)
+    to `launches` instead of launching, as Warp's launch resolves them (a launch of no threads
+    loads nothing), and Warp's conditional graph nodes run their bodies once."""
+    from warp._src import context
+
+    signature = inspect.signature(context.launch)
+
+    def launch(*args: Any, **kwargs: Any) -> None:
+        call = signature.bind(*args, **kwargs)
+        call.apply_defaults()
+        arguments = call.arguments
+        stream = arguments["stream"]
+        device = stream.device if stream is not None else context.runtime.get_device(arguments["device"])
+        if context._normalize_launch_dim(arguments["dim"])[1] == 0:
+            return
+        block_dim = context._resolve_launch_block_dim(device, arguments["block_dim"])
+        launches.append((arguments["kernel"].module, device, block_dim))
+
+    def launch_tiled(*args: Any, dim: int | Sequence[int], block_dim: int, **kwargs: Any) -> None:
+        extents = [dim] if isinstance(dim, int) else list(dim)
+        launch(*args, dim=[*extents, block_dim], block_dim=block_dim, **kwargs)
+
+    def capture_while(condition: Any, while_body: Callable[..., None], **kwargs: Any) -> None:
+        while_body(**kwargs)
+
+    def capture_if(
+        condition: Any, on_true: Callable | None = None, on_false: Callable | None = None, **kwargs: Any
+    ) -> None:
+        for body in (on_true, on_false):
+            if body is not None:
+                body(**kwargs)
+
+    replacements = {
+        "launch": launch,
+        "launch_tiled": launch_tiled,
+        "capture_while": capture_while,
+        "capture_if": capture_if,
+    }
+    saved = {name: getattr(warp, name) for name in replacements}
+    for name, function in replacements.items():
+        setattr(warp, name, function)
+    try:
+        yield
+    finally:
+        for name, function in saved.items():
+            setattr(warp, name, function)
+
+
+@functools.cache
+def _worker_modules(scene: str, mocap_bodies: tuple[str, ...], config: PhysicsConfig) -> dict[str, Launch]:
+    return launched_modules(scene, mocap_bodies, config)
+
+
+def _compile_module(scene: str, mocap_bodies: tuple[str, ...], config: PhysicsConfig, identifier: str) -> int:
+    """In a worker: load one module of the scene as its launch would (compiling it unless Warp's
+    cache has it); returns how many modules that compiled (0 or 1)."""
+    os.environ["MWJAX_PROGRESS"] = "0"  # the parent reports; workers stay quiet
+    module, device, block_dim = _worker_modules(scene, mocap_bodies, config)[identifier]
+    before = progress.kernel_builds().built
+    module.load(device, block_dim)
+    return progress.kernel_builds().built - before
 
 
 def main() -> None:

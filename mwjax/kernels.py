@@ -74,8 +74,8 @@ def build(
     if record is not None and record.exists() and not force:
         with progress.phase(f"physics kernels for {len(todo)} scenes: already in Warp's cache"):
             return 0, time.perf_counter() - start
-    workers = max(1, min(workers or os.cpu_count() or 1, len(todo)))
-    with progress.phase(f"building physics kernels for {len(todo)} scenes in {workers} processes"):
+    workers = max(1, workers or os.cpu_count() or 1)
+    with progress.phase(f"building physics kernels for {len(todo)} scenes ({workers} processes)"):
         built = _build_all(todo, config, workers)
     if record is not None:
         record.parent.mkdir(parents=True, exist_ok=True)
@@ -131,7 +131,7 @@ def _build_all(todo: Sequence[Scene], config: PhysicsConfig, workers: int) -> in
             tasks.setdefault(identifier, (scene, bodies))
     spawn = multiprocessing.get_context("spawn")
     built = 0
-    with concurrent.futures.ProcessPoolExecutor(workers, mp_context=spawn) as pool:
+    with concurrent.futures.ProcessPoolExecutor(max(1, min(workers, len(tasks))), mp_context=spawn) as pool:
         futures = [
             pool.submit(_compile_module, scene, bodies, config, identifier)
             for identifier, (scene, bodies) in tasks.items()
@@ -173,7 +173,8 @@ def launched_modules(scene: str, mocap_bodies: tuple[str, ...], config: PhysicsC
 def _recording_launches(launches: list[Launch]) -> Iterator[None]:
     """Within the block, `warp.launch` and `warp.launch_tiled` append (module, device, block size)
     to `launches` instead of launching, as Warp's launch resolves them (a launch of no threads
-    loads nothing), and Warp's conditional graph nodes run their bodies once."""
+    loads nothing), as does `warp.get_suggested_block_size` (which loads the module on a GPU), and
+    Warp's conditional graph nodes run their bodies once."""
     from warp._src import context
 
     signature = inspect.signature(context.launch)
@@ -193,6 +194,15 @@ def _recording_launches(launches: list[Launch]) -> Iterator[None]:
         extents = [dim] if isinstance(dim, int) else list(dim)
         launch(*args, dim=[*extents, block_dim], block_dim=block_dim, **kwargs)
 
+    def suggested_block_size(kernel: Any, device: Any = None) -> tuple[int, int]:
+        # On a GPU, Warp's occupancy query loads the kernel's module at the module's own block
+        # size; the answer only sizes launch grids, so any plausible one lists the same modules.
+        device = context.runtime.get_device(device)
+        if device.is_cpu:
+            return (1, 1)
+        launches.append((kernel.module, device, kernel.module.options["block_dim"]))
+        return (256, device.sm_count)
+
     def capture_while(condition: Any, while_body: Callable[..., None], **kwargs: Any) -> None:
         while_body(**kwargs)
 
@@ -206,6 +216,7 @@ def _recording_launches(launches: list[Launch]) -> Iterator[None]:
     replacements = {
         "launch": launch,
         "launch_tiled": launch_tiled,
+        "get_suggested_block_size": suggested_block_size,
         "capture_while": capture_while,
         "capture_if": capture_if,
     }

@@ -96,6 +96,23 @@ def test_the_dry_run_lists_the_modules_a_real_step_loads(monkeypatch):
         assert set(listed) == loaded, scene
 
 
+def test_the_dry_run_loads_no_module_and_answers_occupancy_queries_itself(monkeypatch):
+    """The dry run compiles nothing in the calling process: every path that loads a module is
+    recorded instead, Warp's occupancy query included (on a GPU it loads the kernel's module;
+    MJWarp asks it for its broadphase, its convex collider and its solver)."""
+    from warp._src.context import Module
+
+    def refuse(*args, **kwargs):
+        raise AssertionError("the dry run loaded a module")
+
+    monkeypatch.setattr(Module, "load", refuse)
+    monkeypatch.setattr(warp, "get_suggested_block_size", refuse)
+    scene, bodies = kernels.scenes(["push-v3"])[0]
+    listed = kernels.launched_modules(scene, bodies, mwjax.PhysicsConfig())
+    assert any("nxn_broadphase" in name for name in listed)  # the module whose grid it queries
+    assert warp.get_suggested_block_size is refuse  # restored after the dry run
+
+
 @pytest.mark.slow
 def test_after_a_build_the_first_step_compiles_no_scene_module(tmp_path):
     # A fresh Warp cache: the build compiles every module of the two scenes; a new process that

@@ -27,6 +27,7 @@ import hashlib
 import inspect
 import multiprocessing
 import os
+import threading
 import time
 from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
@@ -169,6 +170,9 @@ def launched_modules(scene: str, mocap_bodies: tuple[str, ...], config: PhysicsC
     }
 
 
+_RECORDING = threading.Lock()
+
+
 @contextlib.contextmanager
 def _recording_launches(launches: list[Launch]) -> Iterator[None]:
     """Within the block, `warp.launch` and `warp.launch_tiled` append (module, device, block size)
@@ -221,13 +225,26 @@ def _recording_launches(launches: list[Launch]) -> Iterator[None]:
         "capture_if": capture_if,
     }
     saved = {name: getattr(warp, name) for name in replacements}
-    for name, function in replacements.items():
-        setattr(warp, name, function)
-    try:
-        yield
-    finally:
-        for name, function in saved.items():
-            setattr(warp, name, function)
+    owner = threading.get_ident()
+
+    def in_this_thread(recording: Callable, original: Callable) -> Callable:
+        # Only the dry run's own thread records: a step running meanwhile in another thread of
+        # the process (an env's Warp calls on XLA's threads) still launches its kernels.
+        @functools.wraps(original)
+        def dispatch(*args: Any, **kwargs: Any) -> Any:
+            function = recording if threading.get_ident() == owner else original
+            return function(*args, **kwargs)
+
+        return dispatch
+
+    with _RECORDING:
+        for name, function in replacements.items():
+            setattr(warp, name, in_this_thread(function, saved[name]))
+        try:
+            yield
+        finally:
+            for name, function in saved.items():
+                setattr(warp, name, function)
 
 
 @functools.cache

@@ -5,9 +5,11 @@ from __future__ import annotations
 import os
 import subprocess
 import sys
+import threading
 from pathlib import Path
 
 import mujoco.mjx.third_party.mujoco_warp as mjwarp
+import numpy as np
 import pytest
 import warp
 
@@ -111,6 +113,23 @@ def test_the_dry_run_loads_no_module_and_answers_occupancy_queries_itself(monkey
     listed = kernels.launched_modules(scene, bodies, mwjax.PhysicsConfig())
     assert any("nxn_broadphase" in name for name in listed)  # the module whose grid it queries
     assert warp.get_suggested_block_size is refuse  # restored after the dry run
+
+
+@warp.kernel
+def _add_one(values: warp.array(dtype=float)):
+    values[warp.tid()] += 1.0
+
+
+def test_a_launch_from_another_thread_runs_during_a_dry_run():
+    values = warp.zeros(4, dtype=float, device="cpu")
+    launches = []
+    with kernels._recording_launches(launches):
+        warp.launch(_add_one, dim=4, inputs=[values], device="cpu")  # recorded, not run
+        other = threading.Thread(target=lambda: warp.launch(_add_one, dim=4, inputs=[values], device="cpu"))
+        other.start()
+        other.join()
+    assert [module for module, _, _ in launches] == [_add_one.module]
+    np.testing.assert_array_equal(values.numpy(), np.ones(4))
 
 
 @pytest.mark.slow

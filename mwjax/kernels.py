@@ -155,10 +155,10 @@ def launched_modules(scene: str, mocap_bodies: tuple[str, ...], config: PhysicsC
     the modules a real step would load, and nothing compiles. `tests/test_kernels.py` checks the
     list against the modules a real step loads."""
     model = warp_model(scene, mocap_bodies, config)
-    device_model = mjwarp.put_model(model)
-    device_model.opt.warn_overflow = 0  # as `mwjax.physics` runs it: the kernel variant without printf
     launches: list[Launch] = []
     with _recording_launches(launches):
+        device_model = mjwarp.put_model(model)
+        device_model.opt.warn_overflow = 0  # as `mwjax.physics` runs it: the variant without printf
         data = mjwarp.make_data(
             model, nworld=1, naconmax=config.contacts_per_env, njmax=constraint_rows(scene)
         )

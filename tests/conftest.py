@@ -23,6 +23,7 @@ import pytest
 from reference import EPISODES, load, load_episodes, ported_tasks, shape
 
 import mwjax
+from mwjax import kernels
 
 
 def _on_gpu() -> bool:
@@ -44,6 +45,11 @@ def pytest_collection_finish(session: pytest.Session) -> None:
     # Children run beside the suite only on the CPU: on a GPU they would hold its memory at once.
     if _on_gpu() or children.is_child() or session.config.option.collectonly:
         return
+    # With Warp's cache empty, the tests' first steps would compile the scenes' kernel modules one
+    # after another in this process; build them first, each once, on every core (children too
+    # find them). The all-task env's scenes launch every module the task sets' scenes do. A build
+    # that Warp's cache records as done returns at once.
+    kernels.build(ported_tasks())
     for item in session.items:
         if item.get_closest_marker("child") and not item.get_closest_marker("skip"):
             children.start(item)

@@ -150,24 +150,27 @@ def launched_modules(scene: str, mocap_bodies: tuple[str, ...], config: PhysicsC
     process, on Warp's preferred device), by Warp's module identifier (its name, hash and block
     size: its folder in Warp's cache), with the device and block size it launches with.
 
-    The scene's model and data are made as `mwjax.make` makes them and MJWarp's step runs with
-    Warp's launches recorded instead of run (`_recording_launches`), so its kernel builders make
-    the modules a real step would load, and nothing compiles. `tests/test_kernels.py` checks the
-    list against the modules a real step loads."""
-    model = warp_model(scene, mocap_bodies, config)
+    `step_once` runs with Warp's launches recorded instead of run (`_recording_launches`), so
+    MJWarp's kernel builders make the modules a real step would load, and nothing compiles.
+    `tests/test_kernels.py` checks the list against the modules a real `step_once` loads."""
     launches: list[Launch] = []
     with _recording_launches(launches):
-        device_model = mjwarp.put_model(model)
-        device_model.opt.warn_overflow = 0  # as `mwjax.physics` runs it: the variant without printf
-        data = mjwarp.make_data(
-            model, nworld=1, naconmax=config.contacts_per_env, njmax=constraint_rows(scene)
-        )
-        mjwarp.step(device_model, data)
-        mjwarp.kinematics(device_model, data)
+        step_once(scene, mocap_bodies, config)
     return {
         module.get_module_identifier(block_dim=block_dim): (module, device, block_dim)
         for module, device, block_dim in launches
     }
+
+
+def step_once(scene: str, mocap_bodies: tuple[str, ...], config: PhysicsConfig) -> None:
+    """One world of the scene, its model and data made as `mwjax.make` makes them, through one
+    MJWarp step and one kinematics call."""
+    model = warp_model(scene, mocap_bodies, config)
+    device_model = mjwarp.put_model(model)
+    device_model.opt.warn_overflow = 0  # as `mwjax.physics` runs it: the variant without printf
+    data = mjwarp.make_data(model, nworld=1, naconmax=config.contacts_per_env, njmax=constraint_rows(scene))
+    mjwarp.step(device_model, data)
+    mjwarp.kinematics(device_model, data)
 
 
 _RECORDING = threading.Lock()

@@ -8,7 +8,6 @@ import sys
 import threading
 from pathlib import Path
 
-import mujoco.mjx.third_party.mujoco_warp as mjwarp
 import numpy as np
 import pytest
 import warp
@@ -16,8 +15,6 @@ import warp
 import mwjax
 from mwjax import kernels
 from mwjax.benchmarks import task_names
-from mwjax.models import constraint_rows
-from mwjax.physics import warp_model
 from mwjax.tasks import get_task
 
 ROOT = Path(__file__).parents[1]
@@ -71,7 +68,7 @@ def test_a_meta_learning_set_covers_both_splits():
 
 def test_the_dry_run_lists_the_modules_a_real_step_loads(monkeypatch):
     """`launched_modules` (no kernel runs) names exactly the modules, with their block sizes, that
-    MJWarp's real step and kinematics of each of MT10's scenes load."""
+    a real `step_once` (model and data set-up, step, kinematics) of each of MT10's scenes loads."""
     from warp._src.context import Module
 
     loaded = set()
@@ -84,17 +81,10 @@ def test_the_dry_run_lists_the_modules_a_real_step_loads(monkeypatch):
     config = mwjax.PhysicsConfig()
     for scene, bodies in kernels.scenes("MT10"):
         listed = kernels.launched_modules(scene, bodies, config)
-        model = warp_model(scene, bodies, config)
-        device_model = mjwarp.put_model(model)
-        device_model.opt.warn_overflow = 0
         loaded.clear()
         with monkeypatch.context() as patch:
             patch.setattr(Module, "load", recording_load)
-            data = mjwarp.make_data(
-                model, nworld=1, naconmax=config.contacts_per_env, njmax=constraint_rows(scene)
-            )
-            mjwarp.step(device_model, data)
-            mjwarp.kinematics(device_model, data)
+            kernels.step_once(scene, bodies, config)
         assert set(listed) == loaded, scene
 
 

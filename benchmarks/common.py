@@ -82,4 +82,4 @@ def build_kernels(tasks: str | list[str], physics: object = None) -> float | Non
         return None
     from mwjax import kernels
 
-    return kernels.build(tasks, physics)[1]
+    return kernels.build(tasks, physics).seconds

@@ -164,7 +164,7 @@ def main(argv: Sequence[str] | None = None) -> None:
     if on_gpu:  # a fresh machine's kernel builds, side by side rather than one by one (mwjax.kernels)
         from mwjax import kernels
 
-        prebuilt, _ = kernels.build(tasks)
+        prebuilt = kernels.build(tasks).built
     if not args.no_experts:
         experts(tasks, args.episodes or (50 if on_gpu else 1), args.seed)
     envs_per_task = args.envs_per_task or (1024 if on_gpu else 2)

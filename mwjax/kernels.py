@@ -56,14 +56,70 @@ def scenes(tasks: str | Sequence[str] | benchmarks.Benchmark) -> list[Scene]:
     return list(out)
 
 
+@dataclasses.dataclass(frozen=True)
+class ModuleTime:
+    """Where one module's share of a build went, in a worker process. `started_s`: from the
+    pool's start to the task's (waiting for a free worker, the worker's start and imports);
+    `setup_s`: the worker's dry run of the scene (its first task of that scene only);
+    `compile_s`: Warp's load of the module (compiling it unless another worker just cached it)."""
+
+    identifier: str
+    scene: str
+    built: int
+    started_s: float
+    setup_s: float
+    compile_s: float
+
+
+@dataclasses.dataclass(frozen=True)
+class Build:
+    """What `build` did: `built` modules compiled in `seconds`, of which `dry_run_s` listing them;
+    `modules` the per-module times (empty when Warp's cache recorded the build as done)."""
+
+    built: int
+    seconds: float
+    dry_run_s: float = 0.0
+    workers: int = 0
+    modules: tuple[ModuleTime, ...] = ()
+
+    def summary(self) -> str:
+        """One line: what was built and where the time went."""
+        line = f"{self.built} kernel modules built in {self.seconds:.0f} s"
+        if not self.modules:
+            return line
+        slowest = max(self.modules, key=lambda m: m.compile_s)
+        last = max(self.modules, key=lambda m: m.started_s + m.setup_s + m.compile_s)
+        return (
+            f"{line}: dry run {self.dry_run_s:.1f} s, then {len(self.modules)} modules in "
+            f"{self.workers} processes; slowest compile {slowest.compile_s:.1f} s "
+            f"({_short(slowest.identifier)}); "
+            f"last to finish {_short(last.identifier)}, started at {last.started_s:.1f} s"
+        )
+
+    def report(self) -> str:
+        """A line per module, the last to finish first."""
+        rows = sorted(self.modules, key=lambda m: -(m.started_s + m.setup_s + m.compile_s))
+        lines = ["started_s  setup_s  compile_s  module (scene)"]
+        lines += [
+            f"{m.started_s:9.1f}  {m.setup_s:7.1f}  {m.compile_s:9.1f}  {_short(m.identifier)} ({m.scene})"
+            for m in rows
+        ]
+        return "\n".join(lines)
+
+
+def _short(identifier: str) -> str:
+    """A module identifier without MJWarp's package path."""
+    return identifier.replace("mujoco.mjx.third_party.mujoco_warp._src.", "")
+
+
 def build(
     tasks: str | Sequence[str] | benchmarks.Benchmark,
     config: PhysicsConfig | None = None,
     workers: int | None = None,
     force: bool = False,
-) -> tuple[int, float]:
+) -> Build:
     """Compile the Warp kernel modules of every scene of `tasks` into Warp's cache, `workers`
-    processes at a time (default: one per CPU core). Returns (modules built, seconds).
+    processes at a time (default: one per CPU core).
 
     A build that completed leaves a record in Warp's cache (`record_path`); while it is there, a
     later build of the same scenes and settings returns at once instead of starting processes that
@@ -74,14 +130,15 @@ def build(
     record = record_path(todo, config)
     if record is not None and record.exists() and not force:
         with progress.phase(f"physics kernels for {len(todo)} scenes: already in Warp's cache"):
-            return 0, time.perf_counter() - start
+            return Build(0, time.perf_counter() - start)
     workers = max(1, workers or os.cpu_count() or 1)
     with progress.phase(f"building physics kernels for {len(todo)} scenes ({workers} processes)"):
-        built = _build_all(todo, config, workers)
+        dry_run_s, modules = _build_all(todo, config, workers)
     if record is not None:
         record.parent.mkdir(parents=True, exist_ok=True)
         record.write_text("\n".join(scene for scene, _ in todo) + "\n")
-    return built, time.perf_counter() - start
+    built = sum(m.built for m in modules)
+    return Build(built, time.perf_counter() - start, dry_run_s, min(workers, len(modules)), tuple(modules))
 
 
 def record_path(todo: Sequence[Scene], config: PhysicsConfig) -> Path | None:
@@ -119,27 +176,32 @@ def _sources_digest() -> str:
     return digest.hexdigest()
 
 
-def _build_all(todo: Sequence[Scene], config: PhysicsConfig, workers: int) -> int:
-    """Compile each module that the scenes' steps launch once, `workers` processes at a time.
+def _build_all(todo: Sequence[Scene], config: PhysicsConfig, workers: int) -> tuple[float, list[ModuleTime]]:
+    """Compile each module that the scenes' steps launch once, `workers` processes at a time;
+    returns the dry run's seconds and each module's times.
 
     Scenes share most of their modules, so stepping each scene in a process of its own would
     compile the shared ones in every process at once. A dry run of every scene in this process
     (`launched_modules`: no kernel runs, nothing compiles) lists the distinct modules instead,
     and each becomes one task for the pool."""
+    start = time.perf_counter()
     tasks: dict[str, Scene] = {}
     for scene, bodies in todo:
         for identifier in launched_modules(scene, bodies, config):
             tasks.setdefault(identifier, (scene, bodies))
+    dry_run_s = time.perf_counter() - start
     spawn = multiprocessing.get_context("spawn")
-    built = 0
+    modules = []
     with concurrent.futures.ProcessPoolExecutor(max(1, min(workers, len(tasks))), mp_context=spawn) as pool:
-        futures = [
-            pool.submit(_compile_module, scene, bodies, config, identifier)
+        pool_start = time.time()  # wall clock: comparable with the workers' clocks on this host
+        futures = {
+            pool.submit(_compile_module, scene, bodies, config, identifier): (identifier, scene)
             for identifier, (scene, bodies) in tasks.items()
-        ]
+        }
         for future in concurrent.futures.as_completed(futures):
-            built += future.result()
-    return built
+            built, started, setup_s, compile_s = future.result()
+            modules.append(ModuleTime(*futures[future], built, started - pool_start, setup_s, compile_s))
+    return dry_run_s, modules
 
 
 Launch = tuple[warp.Module, warp.Device, int]
@@ -255,14 +317,19 @@ def _worker_modules(scene: str, mocap_bodies: tuple[str, ...], config: PhysicsCo
     return launched_modules(scene, mocap_bodies, config)
 
 
-def _compile_module(scene: str, mocap_bodies: tuple[str, ...], config: PhysicsConfig, identifier: str) -> int:
+def _compile_module(
+    scene: str, mocap_bodies: tuple[str, ...], config: PhysicsConfig, identifier: str
+) -> tuple[int, float, float, float]:
     """In a worker: load one module of the scene as its launch would (compiling it unless Warp's
-    cache has it); returns how many modules that compiled (0 or 1)."""
+    cache has it); returns how many modules that compiled (0 or 1), when the task started (wall
+    clock), and the seconds of the scene's dry run (0 when this worker had made it) and of the load."""
+    started = time.time()
     os.environ["MWJAX_PROGRESS"] = "0"  # the parent reports; workers stay quiet
     module, device, block_dim = _worker_modules(scene, mocap_bodies, config)[identifier]
+    loading = time.time()
     before = progress.kernel_builds().built
     module.load(device, block_dim)
-    return progress.kernel_builds().built - before
+    return progress.kernel_builds().built - before, started, loading - started, time.time() - loading
 
 
 def main() -> None:
@@ -270,9 +337,12 @@ def main() -> None:
     parser.add_argument("set", help="a set name (MT10, ML45, ...) or task names separated by commas")
     parser.add_argument("--workers", type=int, default=None, help="processes at a time (default: CPU cores)")
     parser.add_argument("--force", action="store_true", help="build even where a completed build is recorded")
+    parser.add_argument("--report", action="store_true", help="print each module's times")
     args = parser.parse_args()
-    built, seconds = build(benchmarks.parse_tasks(args.set), workers=args.workers, force=args.force)
-    print(f"{built} kernel modules built in {seconds:.0f} s; Warp's cache: {warp.config.kernel_cache_dir}")
+    result = build(benchmarks.parse_tasks(args.set), workers=args.workers, force=args.force)
+    print(f"{result.summary()}; Warp's cache: {warp.config.kernel_cache_dir}")
+    if args.report and result.modules:
+        print(result.report())
 
 
 if __name__ == "__main__":

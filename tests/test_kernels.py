@@ -33,15 +33,15 @@ def test_a_completed_build_is_recorded_and_not_repeated(tmp_path, monkeypatch):
 
     def build_all(todo, config, workers):
         calls.append((list(todo), config))
-        return 7
+        return 0.5, [kernels.ModuleTime(f"m{i}", todo[0][0], 1, 0.0, 0.0, 1.0) for i in range(7)]
 
     monkeypatch.setattr(kernels, "_build_all", build_all)
-    assert kernels.build(["push-v3"])[0] == 7
-    assert kernels.build(["push-v3"])[0] == 0
+    assert kernels.build(["push-v3"]).built == 7
+    assert kernels.build(["push-v3"]).built == 0
     assert len(calls) == 1
-    assert kernels.build(["push-v3"], force=True)[0] == 7
-    assert kernels.build(["push-v3"], mwjax.PhysicsConfig(contacts_per_env=32))[0] == 7
-    assert kernels.build(["pick-place-v3"])[0] == 7
+    assert kernels.build(["push-v3"], force=True).built == 7
+    assert kernels.build(["push-v3"], mwjax.PhysicsConfig(contacts_per_env=32)).built == 7
+    assert kernels.build(["pick-place-v3"]).built == 7
     assert len(calls) == 4
     records = sorted(path.name for path in tmp_path.iterdir())
     assert len(records) == 3 and all(name.startswith("mwjax-built-") for name in records)
@@ -57,6 +57,21 @@ def test_a_failed_build_leaves_no_record(tmp_path, monkeypatch):
     with pytest.raises(RuntimeError):
         kernels.build(["push-v3"])
     assert not list(tmp_path.iterdir())
+
+
+def test_the_summary_names_the_slowest_module_and_the_last_to_finish():
+    modules = (
+        kernels.ModuleTime("wp_a_1", "s", 1, started_s=1.0, setup_s=2.0, compile_s=30.0),
+        kernels.ModuleTime("wp_b_2", "s", 1, started_s=20.0, setup_s=0.0, compile_s=15.0),
+        kernels.ModuleTime("wp_c_3", "s", 0, started_s=2.0, setup_s=1.0, compile_s=0.1),
+    )
+    build = kernels.Build(built=2, seconds=36.0, dry_run_s=0.8, workers=2, modules=modules)
+    summary = build.summary()
+    assert summary.startswith("2 kernel modules built in 36 s: dry run 0.8 s, then 3 modules in 2 processes")
+    assert "slowest compile 30.0 s (wp_a_1)" in summary
+    assert "last to finish wp_b_2, started at 20.0 s" in summary
+    assert [line.split()[-2] for line in build.report().splitlines()[1:]] == ["wp_b_2", "wp_a_1", "wp_c_3"]
+    assert kernels.Build(built=0, seconds=0.1).summary() == "0 kernel modules built in 0 s"
 
 
 def test_a_meta_learning_set_covers_both_splits():
@@ -128,8 +143,12 @@ def test_after_a_build_the_first_step_compiles_no_scene_module(tmp_path):
     # makes and steps the env then compiles at most MJX's own FFI module (not scene-specific).
     env = {**os.environ, "WARP_CACHE_PATH": str(tmp_path)}
     build = [sys.executable, "-m", "mwjax.kernels", "push-v3,pick-place-v3", "--workers", "2"]
-    built = subprocess.run(build, cwd=ROOT, env=env, capture_output=True, text=True, check=True)
-    assert int(built.stdout.split()[0]) > 10, built.stdout
+    report = [*build, "--report"]
+    built = subprocess.run(report, cwd=ROOT, env=env, capture_output=True, text=True, check=True)
+    count = int(built.stdout.split()[0])
+    assert count > 10, built.stdout
+    rows = built.stdout.splitlines()[2:]  # the summary, the report's header, a row per module
+    assert len(rows) >= count and all(row.split()[3].startswith("wp_") for row in rows), built.stdout
     again = subprocess.run(build, cwd=ROOT, env=env, capture_output=True, text=True, check=True)
     assert int(again.stdout.split()[0]) == 0, again.stdout  # recorded: no processes, nothing built
     step = (

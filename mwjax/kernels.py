@@ -183,25 +183,52 @@ def _build_all(todo: Sequence[Scene], config: PhysicsConfig, workers: int) -> tu
     Scenes share most of their modules, so stepping each scene in a process of its own would
     compile the shared ones in every process at once. A dry run of every scene in this process
     (`launched_modules`: no kernel runs, nothing compiles) lists the distinct modules instead,
-    and each becomes one task for the pool."""
-    start = time.perf_counter()
-    tasks: dict[str, Scene] = {}
-    for scene, bodies in todo:
-        for identifier in launched_modules(scene, bodies, config):
-            tasks.setdefault(identifier, (scene, bodies))
-    dry_run_s = time.perf_counter() - start
+    and each becomes one task for the pool. The workers start (seconds of imports each) while
+    the dry run runs, and the modules known to compile longest go first (`_slow_first`)."""
     spawn = multiprocessing.get_context("spawn")
-    modules = []
-    with concurrent.futures.ProcessPoolExecutor(max(1, min(workers, len(tasks))), mp_context=spawn) as pool:
+    with concurrent.futures.ProcessPoolExecutor(workers, mp_context=spawn) as pool:
         pool_start = time.time()  # wall clock: comparable with the workers' clocks on this host
+        for _ in range(workers):
+            pool.submit(_start_worker)
+        tasks: dict[str, Scene] = {}
+        for scene, bodies in todo:
+            for identifier in launched_modules(scene, bodies, config):
+                tasks.setdefault(identifier, (scene, bodies))
+        dry_run_s = time.time() - pool_start
         futures = {
             pool.submit(_compile_module, scene, bodies, config, identifier): (identifier, scene)
-            for identifier, (scene, bodies) in tasks.items()
+            for identifier, (scene, bodies) in sorted(tasks.items(), key=lambda task: _slow_first(task[0]))
         }
+        modules = []
         for future in concurrent.futures.as_completed(futures):
             built, started, setup_s, compile_s = future.result()
             modules.append(ModuleTime(*futures[future], built, started - pool_start, setup_s, compile_s))
     return dry_run_s, modules
+
+
+# Module families by their compile time on a GPU, longest first: the convex collider's (18-24 s
+# each on an H200), then the primitive colliders, the solver's Cholesky updates and MJWarp's large
+# module-level ones (5-10 s); the rest take about a second
+# (benchmarks/results/compile/kernels-MT50-fresh-report-db8dc8e-NVIDIA_H200-2026-11-28.log).
+_SLOW_FAMILIES = (
+    "ccd_kernel",
+    "primitive_narrowphase",
+    "cholesky",
+    "_src.passive_",
+    "_src.smooth_",
+    "_src.forward_",
+)
+
+
+def _slow_first(identifier: str) -> int:
+    """A sort key that puts the modules of the slow families first, the slowest family first."""
+    ranks = (rank for rank, family in enumerate(_SLOW_FAMILIES) if family in identifier)
+    return next(ranks, len(_SLOW_FAMILIES))
+
+
+def _start_worker() -> None:
+    """Nothing: a task that makes the pool start a worker, which imports this module (Warp,
+    MuJoCo, mwjax) to run it."""
 
 
 Launch = tuple[warp.Module, warp.Device, int]

@@ -74,6 +74,16 @@ def test_the_summary_names_the_slowest_module_and_the_last_to_finish():
     assert kernels.Build(built=0, seconds=0.1).summary() == "0 kernel modules built in 0 s"
 
 
+def test_the_slow_module_families_go_first_and_name_real_modules():
+    """The pool's order puts the convex collider's modules (the longest GPU compiles) first, and
+    every family `_slow_first` ranks names a module that a scene's step launches."""
+    modules = list(kernels.launched_modules(*kernels.scenes(["reach-v3"])[0], mwjax.PhysicsConfig()))
+    for family in kernels._SLOW_FAMILIES:
+        assert any(family in identifier for identifier in modules), family
+    collider = [identifier for identifier in modules if "ccd_kernel" in identifier]
+    assert collider and sorted(modules, key=kernels._slow_first)[: len(collider)] == collider
+
+
 def test_a_meta_learning_set_covers_both_splits():
     names = {scene for scene, _ in kernels.scenes("ML10")}
     tasks = task_names("ML10", "train") + task_names("ML10", "test")

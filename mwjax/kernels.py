@@ -119,7 +119,7 @@ def build(
     force: bool = False,
 ) -> Build:
     """Compile the Warp kernel modules of every scene of `tasks` into Warp's cache, `workers`
-    processes at a time (default: one per CPU core).
+    processes at a time (default: one per CPU core, at most `MAX_DEFAULT_WORKERS`).
 
     A build that completed leaves a record in Warp's cache (`record_path`); while it is there, a
     later build of the same scenes and settings returns at once instead of starting processes that
@@ -131,7 +131,7 @@ def build(
     if record is not None and record.exists() and not force:
         with progress.phase(f"physics kernels for {len(todo)} scenes: already in Warp's cache"):
             return Build(0, time.perf_counter() - start)
-    workers = max(1, workers or os.cpu_count() or 1)
+    workers = max(1, workers or min(os.cpu_count() or 1, MAX_DEFAULT_WORKERS))
     with progress.phase(f"building physics kernels for {len(todo)} scenes ({workers} processes)"):
         dry_run_s, modules = _build_all(todo, config, workers)
     if record is not None:
@@ -139,6 +139,13 @@ def build(
         record.write_text("\n".join(scene for scene, _ in todo) + "\n")
     built = sum(m.built for m in modules)
     return Build(built, time.perf_counter() - start, dry_run_s, min(workers, len(modules)), tuple(modules))
+
+
+# More processes do not shorten a build: its end is set by the longest module's compile (a convex
+# collider's, ~25 s on a GPU), and a set's modules add up to less than 16 times that (MT50's 74:
+# ~325 s of compile, `--report` shows each). Each process costs seconds of imports and a device
+# context.
+MAX_DEFAULT_WORKERS = 16
 
 
 def record_path(todo: Sequence[Scene], config: PhysicsConfig) -> Path | None:
@@ -206,10 +213,9 @@ def _build_all(todo: Sequence[Scene], config: PhysicsConfig, workers: int) -> tu
     return dry_run_s, modules
 
 
-# Module families by their compile time on a GPU, longest first: the convex collider's (18-24 s
-# each on an H200), then the primitive colliders, the solver's Cholesky updates and MJWarp's large
-# module-level ones (5-10 s); the rest take about a second
-# (benchmarks/results/compile/kernels-MT50-fresh-report-db8dc8e-NVIDIA_H200-2026-11-28.log).
+# Module families by their compile time on a GPU, longest first (`--report` shows each module's):
+# the convex collider's (18-24 s each on an H200), then the primitive colliders, the solver's
+# Cholesky kernels and MJWarp's large module-level ones (up to ~10 s); the rest take about a second.
 _SLOW_FAMILIES = (
     "ccd_kernel",
     "primitive_narrowphase",
@@ -362,7 +368,7 @@ def _compile_module(
 def main() -> None:
     parser = argparse.ArgumentParser(prog="python -m mwjax.kernels", description=__doc__.splitlines()[0])
     parser.add_argument("set", help="a set name (MT10, ML45, ...) or task names separated by commas")
-    parser.add_argument("--workers", type=int, default=None, help="processes at a time (default: CPU cores)")
+    parser.add_argument("--workers", type=int, default=None, help="processes (default: CPU cores, ≤ 16)")
     parser.add_argument("--force", action="store_true", help="build even where a completed build is recorded")
     parser.add_argument("--report", action="store_true", help="print each module's times")
     args = parser.parse_args()

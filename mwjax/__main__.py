@@ -149,6 +149,14 @@ def timed(run: Callable[[], Any], env_steps: int, clock: Callable[[], float] = t
 
 def main(argv: Sequence[str] | None = None) -> None:
     args = parse_args(argv)
+    import jax
+
+    run_job(args, prebuild=jax.default_backend() == "gpu")
+
+
+def run_job(args: argparse.Namespace, prebuild: bool) -> None:
+    """The main job; `prebuild` (the GPU's default) compiles Warp's kernel modules in processes
+    (`mwjax.kernels`) while XLA compiles the programs, instead of one by one in their first run."""
     started = time.perf_counter()
     import jax
 
@@ -160,18 +168,32 @@ def main(argv: Sequence[str] | None = None) -> None:
     tasks = args.tasks or ("MT10" if on_gpu else CPU_TASKS)
     if tasks is CPU_TASKS:
         print(f"on the CPU: {_label(tasks)}, MT10's tasks of one scene (`--tasks MT10` takes minutes)")
-    prebuilt = 0
-    if on_gpu:  # a fresh machine's kernel builds, side by side rather than one by one (mwjax.kernels)
+    pending = None
+    if prebuild:
         from mwjax import kernels
 
-        prebuilt = kernels.build(tasks).built
-    if not args.no_experts:
-        experts(tasks, args.episodes or (50 if on_gpu else 1), args.seed)
+        # The worker processes compile while this one compiles XLA's programs below; nothing here
+        # launches a physics kernel before `pending.result()`.
+        pending = kernels.start_build(tasks)
+        if not pending.done:
+            workers = f"{pending.workers} processes"
+            print(f"{pending.modules} physics kernel modules compile in {workers}, meanwhile:", flush=True)
+    episodes = args.episodes or (50 if on_gpu else 1)
+    run_experts = None if args.no_experts else experts(tasks, episodes, args.seed)
     envs_per_task = args.envs_per_task or (1024 if on_gpu else 2)
     steps = args.steps or (100 if on_gpu else 5)
     with progress.phase(f"building {_label(tasks)} with {envs_per_task} envs per task"):
         env = mwjax.make(tasks, envs_per_task=envs_per_task, seed=args.seed)
-    throughput(env, steps, args.seed)
+    run_throughput = throughput(env, steps, args.seed)
+    prebuilt = 0
+    if pending is not None and not pending.done:
+        with progress.phase(f"waiting for the {pending.modules} physics kernel modules"):
+            build = pending.result()
+        print(build.summary(), flush=True)
+        prebuilt = build.built
+    if run_experts is not None:
+        run_experts()
+    run_throughput()
     builds = progress.kernel_builds()
     built = progress.modules(builds.built + prebuilt)
     print(
@@ -181,9 +203,10 @@ def main(argv: Sequence[str] | None = None) -> None:
     )
 
 
-def experts(tasks: str | list[str], episodes: int, seed: int) -> None:
+def experts(tasks: str | list[str], episodes: int, seed: int) -> Callable[[], None]:
     """The experts on every task, each on its own MT1 goal variants (the reference's), one
-    episode per variant; the run stops early once every episode has succeeded."""
+    episode per variant; the run stops early once every episode has succeeded. Builds the env and
+    compiles the rollout; the function it returns runs it and prints the table."""
     import jax
     import jax.numpy as jnp
     import numpy as np
@@ -223,23 +246,30 @@ def experts(tasks: str | list[str], episodes: int, seed: int) -> None:
     key = jax.random.key(seed)
     with progress.phase("compiling the experts' rollout (XLA)"):
         compiled = jax.jit(rollout).lower(key).compile()
-    with progress.phase("running the experts"):
-        start = time.perf_counter()
-        success, steps = jax.block_until_ready(compiled(key))
-        seconds = time.perf_counter() - start
-    success = np.asarray(success).reshape(len(env.task_list), episodes)
-    print(
-        f"\nscripted experts, {episodes} episode(s) per task on each task's seed-{seed} MT1 goals, "
-        f"stopped after {int(steps)} steps ({seconds:.1f} s):"
-    )
-    print(f"  {'task':<30} {'mwjax':>8}   reference experts (seed {REFERENCE_SEED}, 50 goals)")
-    for task, row in zip(env.task_list, success, strict=True):
-        print(f"  {task:<30} {row.mean():>8.2f}   {reference_success(task):.2f}")
-    print(f"  {'mean':<30} {success.mean():>8.2f}   {np.mean([reference_success(t) for t in names]):.2f}\n")
+
+    def run() -> None:
+        with progress.phase("running the experts"):
+            start = time.perf_counter()
+            success, steps = jax.block_until_ready(compiled(key))
+            seconds = time.perf_counter() - start
+        table = np.asarray(success).reshape(len(env.task_list), episodes)
+        print(
+            f"\nscripted experts, {episodes} episode(s) per task on each task's seed-{seed} MT1 goals, "
+            f"stopped after {int(steps)} steps ({seconds:.1f} s):"
+        )
+        print(f"  {'task':<30} {'mwjax':>8}   reference experts (seed {REFERENCE_SEED}, 50 goals)")
+        for task, row in zip(env.task_list, table, strict=True):
+            print(f"  {task:<30} {row.mean():>8.2f}   {reference_success(task):.2f}")
+        reference = np.mean([reference_success(t) for t in names])
+        print(f"  {'mean':<30} {table.mean():>8.2f}   {reference:.2f}\n")
+
+    return run
 
 
-def throughput(env: Any, steps: int, seed: int) -> None:
-    """Env steps per second under uniform random actions (obs, rewards and autoreset included)."""
+def throughput(env: Any, steps: int, seed: int) -> Callable[[], None]:
+    """Env steps per second under uniform random actions (obs, rewards and autoreset included).
+    Compiles the reset and the rollout (from the reset's shapes: nothing runs); the function it
+    returns resets, staggers the episodes, runs the rollout twice and prints the rate."""
     import jax
 
     from mwjax import progress
@@ -255,19 +285,25 @@ def throughput(env: Any, steps: int, seed: int) -> None:
     key = jax.random.key(seed)
     with progress.phase("compiling the reset and the random-action rollout (XLA)"):
         start = time.perf_counter()
-        state = jax.block_until_ready(jax.jit(env.reset)(key))
-        state = staggered(state, env.max_episode_steps, key)
-        compiled = jax.jit(rollout).lower(state, key).compile()
+        reset = jax.jit(env.reset).lower(key)
+        compiled = jax.jit(rollout).lower(reset.out_info, key).compile()
+        reset = reset.compile()
         compile_s = time.perf_counter() - start
-    with progress.phase(f"rollout of {steps} steps x {env.num_envs} envs: warm-up run, then timed run"):
-        timing = timed(lambda: jax.block_until_ready(compiled(state, key)), env.num_envs * steps)
-    print(
-        f"throughput, random actions: {env.num_envs} envs ({len(env.task_list)} tasks), "
-        f"{steps}-step window of staggered episodes (autoreset inside): "
-        f"{timing.steps_per_second:,.0f} env steps/s (timed run {timing.timed_run_s:.2f} s; "
-        f"compile {compile_s:.1f} s and warm-up run {timing.first_run_s:.2f} s not counted)",
-        flush=True,
-    )
+
+    def run() -> None:
+        label = f"reset, then a rollout of {steps} steps x {env.num_envs} envs: warm-up run, then timed run"
+        with progress.phase(label):
+            state = staggered(jax.block_until_ready(reset(key)), env.max_episode_steps, key)
+            timing = timed(lambda: jax.block_until_ready(compiled(state, key)), env.num_envs * steps)
+        print(
+            f"throughput, random actions: {env.num_envs} envs ({len(env.task_list)} tasks), "
+            f"{steps}-step window of staggered episodes (autoreset inside): "
+            f"{timing.steps_per_second:,.0f} env steps/s (timed run {timing.timed_run_s:.2f} s; "
+            f"compile {compile_s:.1f} s and warm-up run {timing.first_run_s:.2f} s not counted)",
+            flush=True,
+        )
+
+    return run
 
 
 if __name__ == "__main__":

@@ -124,21 +124,99 @@ def build(
     A build that completed leaves a record in Warp's cache (`record_path`); while it is there, a
     later build of the same scenes and settings returns at once instead of starting processes that
     would only load the cached modules (~10 s for MT10's eight scenes). `force` builds anyway."""
+    pending = start_build(tasks, config, workers, force)
+    if pending.done:
+        return pending.result()
+    with progress.phase(f"building {pending.modules} physics kernel modules ({pending.workers} processes)"):
+        return pending.result()
+
+
+def start_build(
+    tasks: str | Sequence[str] | benchmarks.Benchmark,
+    config: PhysicsConfig | None = None,
+    workers: int | None = None,
+    force: bool = False,
+) -> PendingBuild:
+    """`build`, returning once its processes compile: the dry run here, then each module a task
+    of the pool, whose workers run on while this process does other work that launches no
+    physics kernel (e.g. XLA compiling programs that step the scenes). `result()` waits."""
     config = config or PhysicsConfig()
     todo = scenes(tasks)
     start = time.perf_counter()
     record = record_path(todo, config)
     if record is not None and record.exists() and not force:
         with progress.phase(f"physics kernels for {len(todo)} scenes: already in Warp's cache"):
-            return Build(0, time.perf_counter() - start)
+            return PendingBuild(start)
     workers = max(1, workers or min(os.cpu_count() or 1, MAX_DEFAULT_WORKERS))
-    with progress.phase(f"building physics kernels for {len(todo)} scenes ({workers} processes)"):
-        dry_run_s, modules = _build_all(todo, config, workers)
-    if record is not None:
-        record.parent.mkdir(parents=True, exist_ok=True)
-        record.write_text("\n".join(scene for scene, _ in todo) + "\n")
-    built = sum(m.built for m in modules)
-    return Build(built, time.perf_counter() - start, dry_run_s, min(workers, len(modules)), tuple(modules))
+    pool = _pool(workers)
+    try:
+        pool_start = time.time()  # wall clock: comparable with the workers' clocks on this host
+        for _ in range(workers):  # the workers start (seconds of imports each) during the dry run
+            pool.submit(_start_worker)
+        with progress.phase(f"listing the physics kernel modules of {len(todo)} scenes"):
+            tasks_by_module = _distinct_modules(todo, config)
+        order = sorted(tasks_by_module.items(), key=lambda task: _slow_first(task[0]))
+        futures = {
+            pool.submit(_compile_module, scene, bodies, config, identifier): (identifier, scene)
+            for identifier, (scene, bodies) in order
+        }
+    except BaseException:
+        pool.shutdown(cancel_futures=True)
+        raise
+    return PendingBuild(
+        start, pool, futures, min(workers, len(futures)), pool_start, time.time() - pool_start, record, todo
+    )
+
+
+@dataclasses.dataclass
+class PendingBuild:
+    """A build under way in worker processes (`start_build`): `futures` maps each module's task
+    to (module, scene). `result()` waits for them, records the build in Warp's cache and shuts the
+    pool down; without a pool the build was already recorded as done."""
+
+    start: float
+    pool: concurrent.futures.Executor | None = None
+    futures: dict[concurrent.futures.Future, tuple[str, str]] = dataclasses.field(default_factory=dict)
+    workers: int = 0
+    pool_start: float = 0.0
+    dry_run_s: float = 0.0
+    record: Path | None = None
+    todo: Sequence[Scene] = ()
+    _result: Build | None = None
+
+    def __post_init__(self) -> None:
+        if self.pool is None:
+            self._result = Build(0, time.perf_counter() - self.start)
+
+    @property
+    def modules(self) -> int:
+        """The distinct modules the build compiles."""
+        return len(self.futures)
+
+    @property
+    def done(self) -> bool:
+        return self._result is not None
+
+    def result(self) -> Build:
+        if self._result is not None:
+            return self._result
+        assert self.pool is not None
+        modules = []
+        try:
+            for future in concurrent.futures.as_completed(self.futures):
+                built, started, setup_s, compile_s = future.result()
+                started_s = started - self.pool_start
+                modules.append(ModuleTime(*self.futures[future], built, started_s, setup_s, compile_s))
+        finally:
+            self.pool.shutdown(cancel_futures=True)
+        if self.record is not None:
+            self.record.parent.mkdir(parents=True, exist_ok=True)
+            self.record.write_text("\n".join(scene for scene, _ in self.todo) + "\n")
+        built = sum(m.built for m in modules)
+        self._result = Build(
+            built, time.perf_counter() - self.start, self.dry_run_s, self.workers, tuple(modules)
+        )
+        return self._result
 
 
 # More processes do not shorten a build: its end is set by the longest module's compile (a convex
@@ -183,34 +261,22 @@ def _sources_digest() -> str:
     return digest.hexdigest()
 
 
-def _build_all(todo: Sequence[Scene], config: PhysicsConfig, workers: int) -> tuple[float, list[ModuleTime]]:
-    """Compile each module that the scenes' steps launch once, `workers` processes at a time;
-    returns the dry run's seconds and each module's times.
+def _pool(workers: int) -> concurrent.futures.Executor:
+    return concurrent.futures.ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn"))
+
+
+def _distinct_modules(todo: Sequence[Scene], config: PhysicsConfig) -> dict[str, Scene]:
+    """Each module that the scenes' steps launch, once, with a scene that launches it.
 
     Scenes share most of their modules, so stepping each scene in a process of its own would
     compile the shared ones in every process at once. A dry run of every scene in this process
     (`launched_modules`: no kernel runs, nothing compiles) lists the distinct modules instead,
-    and each becomes one task for the pool. The workers start (seconds of imports each) while
-    the dry run runs, and the modules known to compile longest go first (`_slow_first`)."""
-    spawn = multiprocessing.get_context("spawn")
-    with concurrent.futures.ProcessPoolExecutor(workers, mp_context=spawn) as pool:
-        pool_start = time.time()  # wall clock: comparable with the workers' clocks on this host
-        for _ in range(workers):
-            pool.submit(_start_worker)
-        tasks: dict[str, Scene] = {}
-        for scene, bodies in todo:
-            for identifier in launched_modules(scene, bodies, config):
-                tasks.setdefault(identifier, (scene, bodies))
-        dry_run_s = time.time() - pool_start
-        futures = {
-            pool.submit(_compile_module, scene, bodies, config, identifier): (identifier, scene)
-            for identifier, (scene, bodies) in sorted(tasks.items(), key=lambda task: _slow_first(task[0]))
-        }
-        modules = []
-        for future in concurrent.futures.as_completed(futures):
-            built, started, setup_s, compile_s = future.result()
-            modules.append(ModuleTime(*futures[future], built, started - pool_start, setup_s, compile_s))
-    return dry_run_s, modules
+    and each becomes one task for the pool."""
+    tasks: dict[str, Scene] = {}
+    for scene, bodies in todo:
+        for identifier in launched_modules(scene, bodies, config):
+            tasks.setdefault(identifier, (scene, bodies))
+    return tasks
 
 
 # Module families by their compile time on a GPU, longest first (`--report` shows each module's):

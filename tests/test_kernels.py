@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+import concurrent.futures
 import os
 import subprocess
 import sys
 import threading
+import time
 from pathlib import Path
 
 import numpy as np
@@ -25,17 +27,29 @@ def test_scenes_are_the_physics_groups_that_make_builds():
     assert kernels.scenes("MT10") == [(g.scene, g.mocap_bodies) for g in env.physics.groups]
 
 
+def _fake_pool(monkeypatch, compile_module=None):
+    """The build with threads for processes and 7 modules that compile at once (or as
+    `compile_module` says); returns the list of the dry runs' (scenes, config)."""
+    dry_runs = []
+
+    def distinct_modules(todo, config):
+        dry_runs.append((list(todo), config))
+        return {f"wp_module_{i}": todo[0] for i in range(7)}
+
+    def compiled(scene, bodies, config, identifier):
+        return 1, time.time(), 0.0, 0.0
+
+    monkeypatch.setattr(kernels, "_distinct_modules", distinct_modules)
+    monkeypatch.setattr(kernels, "_compile_module", compile_module or compiled)
+    monkeypatch.setattr(kernels, "_pool", concurrent.futures.ThreadPoolExecutor)
+    return dry_runs
+
+
 def test_a_completed_build_is_recorded_and_not_repeated(tmp_path, monkeypatch):
     """A build of the same scenes and settings into the same Warp cache returns at once; other
     scenes, other settings or `force` build again."""
     monkeypatch.setattr(warp.config, "kernel_cache_dir", str(tmp_path))
-    calls = []
-
-    def build_all(todo, config, workers):
-        calls.append((list(todo), config))
-        return 0.5, [kernels.ModuleTime(f"m{i}", todo[0][0], 1, 0.0, 0.0, 1.0) for i in range(7)]
-
-    monkeypatch.setattr(kernels, "_build_all", build_all)
+    calls = _fake_pool(monkeypatch)
     assert kernels.build(["push-v3"]).built == 7
     assert kernels.build(["push-v3"]).built == 0
     assert len(calls) == 1
@@ -50,13 +64,34 @@ def test_a_completed_build_is_recorded_and_not_repeated(tmp_path, monkeypatch):
 def test_a_failed_build_leaves_no_record(tmp_path, monkeypatch):
     monkeypatch.setattr(warp.config, "kernel_cache_dir", str(tmp_path))
 
-    def build_all(todo, config, workers):
+    def compile_module(scene, bodies, config, identifier):
         raise RuntimeError("a worker failed")
 
-    monkeypatch.setattr(kernels, "_build_all", build_all)
+    _fake_pool(monkeypatch, compile_module)
     with pytest.raises(RuntimeError):
         kernels.build(["push-v3"])
     assert not list(tmp_path.iterdir())
+
+
+def test_a_started_build_compiles_while_the_caller_goes_on(tmp_path, monkeypatch):
+    """`start_build` returns with the modules still compiling; `result()` waits for them all and
+    only then records the build."""
+    monkeypatch.setattr(warp.config, "kernel_cache_dir", str(tmp_path))
+    release = threading.Event()
+
+    def compile_module(scene, bodies, config, identifier):
+        assert release.wait(timeout=30)
+        return 1, time.time(), 0.0, 0.0
+
+    _fake_pool(monkeypatch, compile_module)
+    pending = kernels.start_build(["push-v3"], workers=2)
+    assert not pending.done and pending.modules == 7 and pending.workers == 2
+    assert not list(tmp_path.iterdir())
+    release.set()
+    result = pending.result()
+    assert result.built == 7 and len(result.modules) == 7 and pending.done
+    assert [path.name.startswith("mwjax-built-") for path in tmp_path.iterdir()] == [True]
+    assert kernels.start_build(["push-v3"]).done  # recorded: nothing to wait for
 
 
 def test_the_summary_names_the_slowest_module_and_the_last_to_finish():

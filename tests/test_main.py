@@ -4,6 +4,8 @@ that never counts the first run, and the reference figures it prints."""
 from __future__ import annotations
 
 import json
+import os
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -98,3 +100,37 @@ def test_reference_figures_are_the_recorded_ones():
     assert len(recorded["success_rate"]) == 50
     for task, rate in recorded["success_rate"].items():
         assert main_job.reference_success(task) == pytest.approx(rate, abs=1e-12), task
+
+
+@pytest.mark.slow
+def test_the_kernels_compile_in_processes_while_xla_compiles(tmp_path):
+    """The main job with the kernel build (the GPU's path) into an empty Warp cache: the build's
+    processes compile the scene modules while XLA compiles, the job waits for them before its
+    first run, and its own process compiles at most MJX's own FFI module."""
+    code = (
+        "import mwjax.__main__ as m\n"
+        "m.run_job(m.parse_args(['--tasks', 'reach-v3,push-v3', '--steps', '2']), prebuild=True)\n"
+    )
+    env = {**os.environ, "WARP_CACHE_PATH": str(tmp_path), "MWJAX_PROGRESS": "1"}
+    result = subprocess.run(
+        [sys.executable, "-c", code],
+        cwd=ROOT,
+        env=env,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+        check=True,
+    )
+    lines = result.stdout.splitlines()
+
+    def first(text: str) -> int:
+        return next(i for i, line in enumerate(lines) if text in line)
+
+    assert first("physics kernel modules compile in") < first("compiling the experts' rollout (XLA):")
+    assert first("compiling the reset and the random-action rollout (XLA):") < first("waiting for the")
+    assert first("waiting for the") < first("running the experts:") < first("throughput, random actions")
+    pattern = r"Warp built (\d+) physics kernel modules? \((\d+) of them in parallel processes\)"
+    total = re.search(pattern, lines[-1])
+    assert total is not None, lines[-1]
+    built, in_processes = int(total[1]), int(total[2])
+    assert in_processes > 10 and built - in_processes <= 1, lines[-1]

@@ -963,6 +963,57 @@ def _plot(runs: list[dict], path: Path) -> None:
     fig.savefig(path, dpi=120)
 
 
+def task_curves(runs: list[dict]) -> dict[str, list[tuple[int, list[float], list[float]]]]:
+    """Each task's training success over env steps (millions), one series per run (seed, steps,
+    success), from the curve points where every task had finished an episode: what the per-task
+    PNG draws."""
+    curves: dict[str, list[tuple[int, list[float], list[float]]]] = {}
+    for run in runs:
+        points = [row for row in run["curve"] if row["train_success"] is not None]
+        for task in points[0]["train_success_per_task"] if points else ():
+            steps = [row["env_steps"] / 1e6 for row in points]
+            success = [row["train_success_per_task"][task] for row in points]
+            curves.setdefault(task, []).append((run["config"]["seed"], steps, success))
+    return curves
+
+
+def _plot_tasks(runs: list[dict], path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    curves = task_curves(runs)
+    if not curves:
+        return
+    cols = min(len(curves), 5 if len(curves) <= 10 else 10)
+    rows = math.ceil(len(curves) / cols)
+    fig, axes = plt.subplots(
+        rows, cols, figsize=(2.3 * cols, 1.9 * rows + 0.6), sharex=True, sharey=True, squeeze=False
+    )
+    for ax, (task, series) in zip(axes.flat, curves.items(), strict=False):  # spare panels stay empty
+        for index, (seed, steps, success) in enumerate(series):
+            ax.plot(steps, success, color=f"C{index}", linewidth=1, label=f"seed {seed}")
+        evals = [
+            run["eval_success_per_task"][task] for run in runs if task in run.get("eval_success_per_task", {})
+        ]
+        title = task.removesuffix("-v3") + (f" (eval {np.mean(evals):.2f})" if evals else "")
+        ax.set_title(title, fontsize=8)
+        ax.set_ylim(0, 1.02)
+        ax.grid(alpha=0.3)
+        ax.tick_params(labelsize=7)
+    for ax in axes.flat[len(curves) :]:
+        ax.axis("off")
+    fig.supxlabel("env steps (millions)", fontsize=9)
+    fig.supylabel("success, training episodes", fontsize=9)
+    handles, labels = axes.flat[0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="upper right", fontsize=7, ncols=min(len(labels), 5))
+    name = runs[0].get("name") or runs[0]["config"]["task_set"]
+    fig.suptitle(f"{name}: training success per task", fontsize=10, x=0.02, ha="left")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+
+
 def _commit() -> str:
     """The repository's HEAD (or $MWJAX_COMMIT), recorded with the results."""
     if os.environ.get("MWJAX_COMMIT"):
@@ -1291,8 +1342,10 @@ def write_summary(
             flush=True,
         )
     Path(f"{stem}.json").write_text(json.dumps(summary, indent=2))
-    plotted = save_plot(plot, runs, Path(f"{stem}.png"))
-    print(f"-> {stem}.json" + (f", {stem}.png" if plotted else ""))
+    plotted = save_plot(plot, runs, Path(f"{stem}.png")) and save_plot(
+        _plot_tasks, runs, Path(f"{stem}-tasks.png")
+    )
+    print(f"-> {stem}.json" + (f", {stem}.png, {stem}-tasks.png" if plotted else ""))
     return stem
 
 

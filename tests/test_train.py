@@ -362,3 +362,21 @@ def test_seeds_in_one_program_refuse_per_seed_options(monkeypatch, capsys):
     with pytest.raises(SystemExit) as exit:
         ppo.main()
     assert exit.value.code == 2 and "drop --parallel, --checkpoint" in capsys.readouterr().err
+
+
+def test_task_curves_follow_each_task_of_each_seed():
+    """The per-task PNG's series, from two committed MT10 runs: every task, a series per seed,
+    over the curve points where every task had finished an episode."""
+    results = Path(__file__).parents[1] / "benchmarks/results/train"
+    files = sorted(results.glob("train-MT10-ppo-v2-9min-entropy-0.01-seed[01]-5870e15-*.json"))
+    runs = [json.loads(path.read_text())["runs"][0] for path in files]
+    curves = ppo.task_curves(runs)
+    assert list(curves) == list(runs[0]["eval_success_per_task"]) and len(curves) == 10
+    for index, run in enumerate(runs):
+        points = [row for row in run["curve"] if row["train_success"] is not None]
+        assert 0 < len(points) < len(run["curve"])  # the first chunks end before every task has
+        for task, series in curves.items():
+            seed, steps, success = series[index]
+            assert seed == run["config"]["seed"] and len(steps) == len(success) == len(points)
+            assert success == [row["train_success_per_task"][task] for row in points]
+            assert steps == [row["env_steps"] / 1e6 for row in points]

@@ -585,9 +585,12 @@ def train(
     log_every: int = 10,
     max_updates: int | None = None,
     checkpoint: str | Path | None = None,
+    kernels: Any = None,
 ) -> dict:
     """Train until `minutes` of wall clock (compile included) or `max_updates` in all (counting a
-    resumed checkpoint's), saving `checkpoint` after every chunk if given; then meta-test."""
+    resumed checkpoint's), saving `checkpoint` after every chunk if given; then meta-test.
+    `kernels`: a Warp kernel build under way (`ppo.start_kernels`), which the first chunk's
+    compile overlaps."""
     start = time.perf_counter()
     trainer = Trainer(config)
     carry, updates, curve = ppo.start_or_resume(trainer, config.seed, checkpoint)
@@ -600,7 +603,7 @@ def train(
         flush=True,
     )
     loop = ppo._Loop(carry, updates)
-    for metrics in ppo._chunks(trainer.train_chunk, loop, start, budget, log_every, max_updates):
+    for metrics in ppo._chunks(trainer.train_chunk, loop, start, budget, log_every, max_updates, kernels):
         row = ppo._row(metrics, loop.updates, trainer, time.perf_counter() - start)
         curve.append(row)
         ppo._progress(row, budget, metrics.episodes)
@@ -719,10 +722,12 @@ def main() -> None:
     if ppo.combined(parser, args, lambda runs, device, origin: write_results(runs, args, device, origin)):
         return
     try:
-        ppo.build_kernels(benchmark(args.set, task=args.task))
+        kernels = ppo.start_kernels(benchmark(args.set, task=args.task))
     except ValueError as error:
         parser.error(str(error))
     if args.parallel > 1 and len(args.seeds) > 1:
+        if kernels is not None:
+            kernels.wait()  # before the seeds' processes, which find the modules in Warp's cache
         try:
             code = ppo.seeds_in_parallel(
                 args,
@@ -762,7 +767,7 @@ def main() -> None:
             meta_test_train_tasks=args.meta_test_train_tasks,
         )
         checkpoint = None if args.checkpoint is None else f"{args.checkpoint}-seed{seed}"
-        run = train(config, args.minutes, args.log_every, args.updates, checkpoint)
+        run = train(config, args.minutes, args.log_every, args.updates, checkpoint, kernels)
         run.pop("params")
         run["name"] = args.set if args.task is None else f"{args.set}:{args.task}"
         print(

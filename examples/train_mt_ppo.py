@@ -729,11 +729,13 @@ def train(
     video: Path | None = None,
     video_size: int = 128,
     checkpoint: str | Path | None = None,
+    kernels: Any = None,
 ) -> dict:
     """Train until `minutes` of wall clock (compile included) or `max_updates` in all (counting a
     resumed checkpoint's), saving `checkpoint` after every chunk if given; then evaluate, with
     `time_learner` time the learner alone against the last chunk of updates, and with `video` (a
-    folder) write one episode of the trained policy on each task as `<task>.mp4`."""
+    folder) write one episode of the trained policy on each task as `<task>.mp4`. `kernels`: a
+    Warp kernel build under way (`start_kernels`), which the first chunk's compile overlaps."""
     if checkpoint is not None and config.devices > 1:
         raise ValueError("checkpoints are for one device; train with --devices 1")
     start = time.perf_counter()
@@ -748,7 +750,7 @@ def train(
         flush=True,
     )
     loop = _Loop(carry, updates)
-    for metrics in _chunks(trainer.train_chunk, loop, start, budget, log_every, max_updates):
+    for metrics in _chunks(trainer.train_chunk, loop, start, budget, log_every, max_updates, kernels):
         row = _row(metrics, loop.updates, trainer, time.perf_counter() - start)
         curve.append(row)
         _progress(row, budget, metrics.episodes)
@@ -796,6 +798,7 @@ def train_seeds(
     log_every: int,
     max_updates: int | None = None,
     eval_episodes: int = 50,
+    kernels: Any = None,
 ) -> list[dict]:
     """Train every seed of `seeds` at once in one program on one device (`--vmap-seeds`): their
     carries stacked on a leading axis, each update `jax.vmap`ped over them, so one device call
@@ -817,7 +820,7 @@ def train_seeds(
         flush=True,
     )
     curves: list[list[dict]] = [[] for _ in seeds]
-    for metrics in _chunks(trainer.train_chunks, loop, start, budget, log_every, max_updates):
+    for metrics in _chunks(trainer.train_chunks, loop, start, budget, log_every, max_updates, kernels):
         wall_s = time.perf_counter() - start
         for i, seed in enumerate(seeds):
             own = jax.tree.map(lambda x, i=i: x[i], metrics)
@@ -858,21 +861,37 @@ class _Loop:
 
 
 def _chunks(
-    train_chunk: Callable, loop: _Loop, start: float, budget: float, log_every: int, max_updates: int | None
+    train_chunk: Callable,
+    loop: _Loop,
+    start: float,
+    budget: float,
+    log_every: int,
+    max_updates: int | None,
+    kernels: Any = None,
 ) -> Iterator[Any]:
     """Chunks of `log_every` updates, advancing `loop`, until `max_updates` in all, or else until
     the next chunk would pass `budget` seconds after `start` (timed by the last one). Yields each
-    chunk's metrics, on the host."""
+    chunk's metrics, on the host. With `kernels`, a Warp kernel build under way (`start_kernels`),
+    the first chunk's program compiles (XLA needs no kernels) while the build runs, and runs once
+    the build is done; chunks of that size keep running that program."""
     compiled = False
+    ahead: tuple[int, Callable] | None = None
     while max_updates is None or loop.updates < max_updates:
         n = log_every if max_updates is None else min(log_every, max_updates - loop.updates)
         if max_updates is None and time.perf_counter() - start + loop.chunk_s > budget:
             return
         t0 = time.perf_counter()
+        if kernels is not None and not kernels.done:
+            with progress.phase(f"compiling (XLA) the first {n} updates while the physics kernels build"):
+                ahead = (n, train_chunk.lower(loop.carry, n).compile())
+            kernels.wait()
         # The first chunk compiles the whole update loop (minutes when sharded): shown, not silent.
-        first = f"compiling (XLA) and running the first {n} updates"
+        first = f"{'running' if ahead else 'compiling (XLA) and running'} the first {n} updates"
         with progress.phase(first) if not compiled else contextlib.nullcontext():
-            loop.carry, metrics = train_chunk(loop.carry, n)
+            if ahead is not None and ahead[0] == n:
+                loop.carry, metrics = ahead[1](loop.carry)
+            else:
+                loop.carry, metrics = train_chunk(loop.carry, n)
             metrics = jax.device_get(metrics)
         if not np.isfinite(metrics.loss).all():
             # Before the caller saves a checkpoint: the last one keeps the learner before this chunk.
@@ -1038,16 +1057,18 @@ def _gpus() -> list[str]:
     return [] if os.environ.get("JAX_PLATFORMS") == "cpu" else distributed.visible_gpus()
 
 
-def build_kernels(tasks: Any) -> None:
+def start_kernels(tasks: Any) -> Any:
     """On GPUs, first: Warp's kernel modules for every scene of `tasks` (a set name, task list or
-    `Benchmark`), built side by side in processes (`mwjax.kernels`) instead of one after another
-    inside the first chunk, minutes on a fresh machine; at once when Warp's cache has them. The
-    processes this run starts (one per GPU, `--parallel` seeds) then find them there. Not counted
-    in `--minutes`."""
-    if _gpus() and not distributed.launched():
-        from mwjax import kernels
+    `Benchmark`), built side by side in processes (`mwjax.kernels.start_build`) instead of one after
+    another inside the first chunk, a minute on a fresh machine; done at once when Warp's cache
+    has them. Returns the build under way (None on the CPU): `_chunks` compiles the first chunk's
+    program (XLA) while it runs, and the processes this run starts (one per GPU, `--parallel`
+    seeds) start once it is done (`wait()`) and find the modules in Warp's cache."""
+    if not _gpus() or distributed.launched():
+        return None
+    from mwjax import kernels
 
-        kernels.build(tasks)
+    return kernels.start_build(tasks)
 
 
 def one_process_per_gpu(devices: str) -> int | None:
@@ -1167,9 +1188,11 @@ def main() -> None:
                 f"--vmap-seeds trains every seed in one program on one device: drop {', '.join(clash)}"
             )
     try:
-        build_kernels(task_set(args.set))
+        kernels = start_kernels(task_set(args.set))
     except ValueError as error:
         parser.error(str(error))
+    if kernels is not None and (args.devices != "1" or (args.parallel > 1 and len(args.seeds) > 1)):
+        kernels.wait()  # before the processes this run starts, which find the modules in Warp's cache
     try:
         code = one_process_per_gpu(args.devices)
     except ValueError as error:
@@ -1221,6 +1244,7 @@ def main() -> None:
             args.log_every,
             args.updates,
             args.eval_episodes,
+            kernels,
         )
         for run in runs:
             run.pop("params")
@@ -1248,6 +1272,7 @@ def main() -> None:
             video,
             args.video_size,
             None if args.checkpoint is None else f"{args.checkpoint}-seed{seed}",
+            kernels,
         )
         run.pop("params")
         print(

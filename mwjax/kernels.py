@@ -124,11 +124,7 @@ def build(
     A build that completed leaves a record in Warp's cache (`record_path`); while it is there, a
     later build of the same scenes and settings returns at once instead of starting processes that
     would only load the cached modules (~10 s for MT10's eight scenes). `force` builds anyway."""
-    pending = start_build(tasks, config, workers, force)
-    if pending.done:
-        return pending.result()
-    with progress.phase(f"building {pending.modules} physics kernel modules ({pending.workers} processes)"):
-        return pending.result()
+    return start_build(tasks, config, workers, force).wait()
 
 
 def start_build(
@@ -196,6 +192,13 @@ class PendingBuild:
     @property
     def done(self) -> bool:
         return self._result is not None
+
+    def wait(self) -> Build:
+        """`result()`, with a status line while the modules compile."""
+        if self.done:
+            return self.result()
+        with progress.phase(f"building {self.modules} physics kernel modules ({self.workers} processes)"):
+            return self.result()
 
     def result(self) -> Build:
         if self._result is not None:

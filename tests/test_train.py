@@ -6,8 +6,10 @@ import json
 import sys
 import time
 from pathlib import Path
+from typing import Any
 
 import jax
+import jax.numpy as jnp
 import numpy as np
 import pytest
 
@@ -204,6 +206,44 @@ def test_several_gpus_train_in_one_process_each(monkeypatch):
     assert ppo.one_process_per_gpu("all") is None  # host devices (no GPU): one process
 
 
+class _Build:
+    """A kernel build under way (`kernels.start_build`'s result) that logs when it is waited for."""
+
+    def __init__(self, log: list, tasks: Any = None) -> None:
+        self.log, self.done = log, False
+        if tasks is not None:
+            log.append(tasks)
+
+    def wait(self) -> None:
+        self.log.append("built")
+        self.done = True
+
+
+def test_the_first_chunk_compiles_while_the_kernels_build(trainer):
+    """With a kernel build under way, the first chunk's program compiles before the build is
+    waited for, runs after it, and serves the chunks of its size; the chunks learn what they
+    learn without the build."""
+    events: list = []
+
+    class Chunk:  # the trainer's jitted chunk, its compiles and calls logged
+        def lower(self, carry, n):
+            events.append(("lower", n))
+            return trainer.train_chunk.lower(carry, n)
+
+        def __call__(self, carry, n):
+            events.append(("call", n))
+            return trainer.train_chunk(carry, n)
+
+    carry = trainer.init(jax.random.key(7))
+    copy = jax.tree.map(jnp.copy, carry)
+    ahead = list(ppo._chunks(Chunk(), ppo._Loop(carry, 0), time.perf_counter(), 600.0, 2, 5, _Build(events)))
+    assert events == [("lower", 2), "built", ("call", 1)]  # 2 + 2 from the compiled program, then 1
+    plain = list(ppo._chunks(trainer.train_chunk, ppo._Loop(copy, 0), time.perf_counter(), 600.0, 2, 5))
+    for got, want in zip(ahead, plain, strict=True):
+        np.testing.assert_array_equal(got.loss, want.loss)
+        np.testing.assert_array_equal(got.successes, want.successes)
+
+
 def _fake_seed_run(command: list[str], log: Path) -> None:
     """What a seed's child run leaves: its JSON at its `--out` and its log."""
     seed = int(command[len(command) - 1 - command[::-1].index("--seeds") + 1])
@@ -232,13 +272,13 @@ def test_seeds_in_parallel_make_one_summary(tmp_path, monkeypatch):
 
     monkeypatch.setattr(distributed, "run_independent", run_each)
     monkeypatch.setattr(ppo, "_gpus", lambda: ["0", "1"])
-    monkeypatch.setattr(kernels, "build", lambda tasks: started.append(tasks))
+    monkeypatch.setattr(kernels, "start_build", lambda tasks: _Build(started, tasks))
     stem = tmp_path / "run"
     argv = ["train_mt_ppo.py", "--set", "reach-v3,push-v3", "--seeds", "0", "1", "--parallel", "2"]
     monkeypatch.setattr(sys, "argv", [*argv, "--out", str(stem)])
     with pytest.raises(SystemExit) as exit:
         ppo.main()
-    assert exit.value.code == 0 and started == [("reach-v3", "push-v3"), 2]
+    assert exit.value.code == 0 and started == [("reach-v3", "push-v3"), "built", 2]
     summary = json.loads(Path(f"{stem}.json").read_text())
     assert [r["config"]["seed"] for r in summary["runs"]] == [0, 1]
     assert summary["device"] == "test device" and summary["eval_success"] == [0.375, 0.5]
@@ -260,7 +300,7 @@ def _seed_file(tmp_path: Path, seed: int, commit: str = "abc1234", **config) -> 
 def test_combine_makes_one_summary_of_seeds_run_separately(tmp_path, monkeypatch):
     """`--combine`: seeds trained by separate invocations (one per device call) become the same
     summary one invocation of them all writes, with their commit and commands, training nothing."""
-    monkeypatch.setattr(kernels, "build", lambda tasks: pytest.fail("--combine builds nothing"))
+    monkeypatch.setattr(kernels, "start_build", lambda tasks: pytest.fail("--combine builds nothing"))
     files = [_seed_file(tmp_path, seed) for seed in (0, 1, 2)]
     stem = tmp_path / "all"
     monkeypatch.setattr(sys, "argv", ["train_mt_ppo.py", "--combine", *map(str, files), "--out", str(stem)])
@@ -358,7 +398,7 @@ def test_seeds_in_one_program_train_as_each_seed_alone(trainer):
 def test_seeds_in_one_program_refuse_per_seed_options(monkeypatch, capsys):
     argv = ["train_mt_ppo.py", "--seeds", "0", "1", "--vmap-seeds", "--checkpoint", "c", "--parallel", "2"]
     monkeypatch.setattr(sys, "argv", argv)
-    monkeypatch.setattr(kernels, "build", lambda tasks: None)
+    monkeypatch.setattr(kernels, "start_build", lambda tasks: pytest.fail("a refused run builds nothing"))
     with pytest.raises(SystemExit) as exit:
         ppo.main()
     assert exit.value.code == 2 and "drop --parallel, --checkpoint" in capsys.readouterr().err

@@ -10,10 +10,12 @@ compiles each distinct module once into Warp's kernel cache (`~/.cache/warp`, or
 `mwjax.make` prepares them (same mocap bodies, same physics settings, mwjax's Warp patches
 installed), which is what makes the cached modules the ones the env asks for.
 
-    python -m mwjax.kernels MT50 --workers 16
+    python -m mwjax.kernels MT50 --report     # --report: each module's start and compile time
 
-A completed build is recorded in Warp's cache, and a later build of the same scenes and settings
-returns at once (`--force` builds anyway).
+`start_build(tasks)` returns once the processes compile, so that the caller can compile its XLA
+programs meanwhile (which launch no physics kernel) and wait (`PendingBuild.wait()`) before the
+first step. A completed build is recorded in Warp's cache, and a later build of the same scenes
+and settings returns at once (`--force` builds anyway).
 """
 
 from __future__ import annotations

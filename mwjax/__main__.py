@@ -189,7 +189,7 @@ def run_job(args: argparse.Namespace, prebuild: bool) -> None:
     if pending is not None and not pending.done:
         with progress.phase(f"waiting for the {pending.modules} physics kernel modules"):
             build = pending.result()
-        print(build.summary(), flush=True)
+        print(f"{build.built} physics kernel modules built in {build.seconds:.0f} s", flush=True)
         prebuilt = build.built
     if run_experts is not None:
         run_experts()

@@ -989,8 +989,8 @@ def task_curves(runs: list[dict]) -> dict[str, list[tuple[int, list[float], list
     curves: dict[str, list[tuple[int, list[float], list[float]]]] = {}
     for run in runs:
         points = [row for row in run["curve"] if row["train_success"] is not None]
+        steps = [row["env_steps"] / 1e6 for row in points]
         for task in points[0]["train_success_per_task"] if points else ():
-            steps = [row["env_steps"] / 1e6 for row in points]
             success = [row["train_success_per_task"][task] for row in points]
             curves.setdefault(task, []).append((run["config"]["seed"], steps, success))
     return curves

@@ -187,8 +187,7 @@ def run_job(args: argparse.Namespace, prebuild: bool) -> None:
     run_throughput = throughput(env, steps, args.seed)
     prebuilt = 0
     if pending is not None and not pending.done:
-        with progress.phase(f"waiting for the {pending.modules} physics kernel modules"):
-            build = pending.result()
+        build = pending.wait(f"waiting for the {pending.modules} physics kernel modules")
         print(f"{build.built} physics kernel modules built in {build.seconds:.0f} s", flush=True)
         prebuilt = build.built
     if run_experts is not None:

@@ -72,6 +72,11 @@ class ModuleTime:
     setup_s: float
     compile_s: float
 
+    @property
+    def finished_s(self) -> float:
+        """From the pool's start to the module's compile's end."""
+        return self.started_s + self.setup_s + self.compile_s
+
 
 @dataclasses.dataclass(frozen=True)
 class Build:
@@ -90,7 +95,7 @@ class Build:
         if not self.modules:
             return line
         slowest = max(self.modules, key=lambda m: m.compile_s)
-        last = max(self.modules, key=lambda m: m.started_s + m.setup_s + m.compile_s)
+        last = max(self.modules, key=lambda m: m.finished_s)
         return (
             f"{line}: dry run {self.dry_run_s:.1f} s, then {len(self.modules)} modules in "
             f"{self.workers} processes; slowest compile {slowest.compile_s:.1f} s "
@@ -100,7 +105,7 @@ class Build:
 
     def report(self) -> str:
         """A line per module, the last to finish first."""
-        rows = sorted(self.modules, key=lambda m: -(m.started_s + m.setup_s + m.compile_s))
+        rows = sorted(self.modules, key=lambda m: -m.finished_s)
         lines = ["started_s  setup_s  compile_s  module (scene)"]
         lines += [
             f"{m.started_s:9.1f}  {m.setup_s:7.1f}  {m.compile_s:9.1f}  {_short(m.identifier)} ({m.scene})"
@@ -161,9 +166,7 @@ def start_build(
     except BaseException:
         pool.shutdown(cancel_futures=True)
         raise
-    return PendingBuild(
-        start, pool, futures, min(workers, len(futures)), pool_start, time.time() - pool_start, record, todo
-    )
+    return PendingBuild(start, pool, futures, workers, pool_start, time.time() - pool_start, record, todo)
 
 
 @dataclasses.dataclass
@@ -195,11 +198,12 @@ class PendingBuild:
     def done(self) -> bool:
         return self._result is not None
 
-    def wait(self) -> Build:
-        """`result()`, with a status line while the modules compile."""
+    def wait(self, label: str | None = None) -> Build:
+        """`result()`, with a status line (`label`, or what is building) while the modules compile."""
         if self.done:
             return self.result()
-        with progress.phase(f"building {self.modules} physics kernel modules ({self.workers} processes)"):
+        label = label or f"building {self.modules} physics kernel modules ({self.workers} processes)"
+        with progress.phase(label):
             return self.result()
 
     def result(self) -> Build:

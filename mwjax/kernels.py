@@ -14,8 +14,9 @@ installed), which is what makes the cached modules the ones the env asks for.
 
 `start_build(tasks)` returns once the processes compile, so that the caller can compile its XLA
 programs meanwhile (which launch no physics kernel) and wait (`PendingBuild.wait()`) before the
-first step. A completed build is recorded in Warp's cache, and a later build of the same scenes
-and settings returns at once (`--force` builds anyway).
+first step. A completed build is recorded in Warp's cache, per scene, and a later build of the same
+scenes and settings returns at once (`--force` builds anyway). On a GPU, an env whose scenes are
+not recorded there builds them so before its physics is made (`prebuild`), in a child process.
 """
 
 from __future__ import annotations
@@ -24,13 +25,18 @@ import argparse
 import concurrent.futures
 import contextlib
 import dataclasses
+import fcntl
 import functools
 import hashlib
 import inspect
+import json
 import multiprocessing
 import os
+import subprocess
+import sys
 import threading
 import time
+import warnings
 from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 from typing import Any
@@ -39,9 +45,9 @@ import mujoco
 import mujoco.mjx.third_party.mujoco_warp as mjwarp
 import warp
 
-from mwjax import benchmarks, placement, progress
+from mwjax import benchmarks, determinism, placement, progress
 from mwjax.models import constraint_rows
-from mwjax.physics import PhysicsConfig, warp_model
+from mwjax.physics import PhysicsConfig, local_device, warp_model
 from mwjax.tasks import get_task
 
 Scene = tuple[str, tuple[str, ...]]
@@ -128,9 +134,10 @@ def build(
     """Compile the Warp kernel modules of every scene of `tasks` into Warp's cache, `workers`
     processes at a time (default: one per CPU core, at most `MAX_DEFAULT_WORKERS`).
 
-    A build that completed leaves a record in Warp's cache (`record_path`); while it is there, a
-    later build of the same scenes and settings returns at once instead of starting processes that
-    would only load the cached modules (~10 s for MT10's eight scenes). `force` builds anyway."""
+    A build that completed leaves a record per scene in Warp's cache (`scene_records`); while they
+    are there, a later build of the same scenes and settings returns at once instead of starting
+    processes that would only load the cached modules (~10 s for MT10's eight scenes). `force`
+    builds anyway."""
     return start_build(tasks, config, workers, force).wait()
 
 
@@ -143,11 +150,20 @@ def start_build(
     """`build`, returning once its processes compile: the dry run here, then each module a task
     of the pool, whose workers run on while this process does other work that launches no
     physics kernel (e.g. XLA compiling programs that step the scenes). `result()` waits."""
+    return start_scene_build(scenes(tasks), config, workers, force)
+
+
+def start_scene_build(
+    todo: Sequence[Scene],
+    config: PhysicsConfig | None = None,
+    workers: int | None = None,
+    force: bool = False,
+) -> PendingBuild:
+    """`start_build` for the (scene, mocap bodies) pairs `todo`."""
     config = config or PhysicsConfig()
-    todo = scenes(tasks)
     start = time.perf_counter()
-    record = record_path(todo, config)
-    if record is not None and record.exists() and not force:
+    records = scene_records(todo, config)
+    if records is not None and all(record.exists() for record in records) and not force:
         with progress.phase(f"physics kernels for {len(todo)} scenes: already in Warp's cache"):
             return PendingBuild(start)
     workers = max(1, workers or min(os.cpu_count() or 1, MAX_DEFAULT_WORKERS))
@@ -166,7 +182,8 @@ def start_build(
     except BaseException:
         pool.shutdown(cancel_futures=True)
         raise
-    return PendingBuild(start, pool, futures, workers, pool_start, time.time() - pool_start, record, todo)
+    _under_way.update(records or ())
+    return PendingBuild(start, pool, futures, workers, pool_start, time.time() - pool_start, records or ())
 
 
 @dataclasses.dataclass
@@ -181,8 +198,7 @@ class PendingBuild:
     workers: int = 0
     pool_start: float = 0.0
     dry_run_s: float = 0.0
-    record: Path | None = None
-    todo: Sequence[Scene] = ()
+    records: Sequence[Path] = ()
     _result: Build | None = None
 
     def __post_init__(self) -> None:
@@ -216,11 +232,14 @@ class PendingBuild:
                 built, started, setup_s, compile_s = future.result()
                 started_s = started - self.pool_start
                 modules.append(ModuleTime(*self.futures[future], built, started_s, setup_s, compile_s))
+        except BaseException:
+            _under_way.difference_update(self.records)
+            raise
         finally:
             self.pool.shutdown(cancel_futures=True)
-        if self.record is not None:
-            self.record.parent.mkdir(parents=True, exist_ok=True)
-            self.record.write_text("\n".join(scene for scene, _ in self.todo) + "\n")
+        for record in self.records:
+            record.parent.mkdir(parents=True, exist_ok=True)
+            record.touch()
         built = sum(m.built for m in modules)
         self._result = Build(
             built, time.perf_counter() - self.start, self.dry_run_s, self.workers, tuple(modules)
@@ -235,29 +254,96 @@ class PendingBuild:
 MAX_DEFAULT_WORKERS = 16
 
 
-def record_path(todo: Sequence[Scene], config: PhysicsConfig) -> Path | None:
-    """The file in Warp's kernel cache that records a completed build of these scenes. Its name
-    hashes all that selects the modules: the scenes, the physics settings, mwjax's sources and
-    scene files (its Warp patches and assets), Warp's and MuJoCo's versions and options, and the
-    device. Emptying Warp's cache removes it with the modules."""
+def scene_records(todo: Sequence[Scene], config: PhysicsConfig) -> list[Path] | None:
+    """The files in Warp's kernel cache that record a completed build of each scene of `todo`
+    (None without a cache folder). A name hashes all that selects the scene's modules: the scene
+    and its mocap bodies, the physics settings, mwjax's sources and scene files (its Warp patches
+    and assets), Warp's and MuJoCo's versions and options, and the device. Per scene, so that a
+    set's build also covers an env of one of its splits or tasks. Emptying Warp's cache removes
+    them with the modules."""
     folder = warp.config.kernel_cache_dir
     if not folder:
         return None
     device = warp.get_preferred_device()
-    key = repr(
-        (
-            list(todo),
-            dataclasses.astuple(config),
-            _sources_digest(),
-            warp.__version__,
-            mujoco.__version__,
-            str(warp.config.mode),
-            str(warp.config.deterministic),
-            device.name,
-            getattr(device, "arch", None),
-        )
+    common = (
+        dataclasses.astuple(config),
+        _sources_digest(),
+        warp.__version__,
+        mujoco.__version__,
+        str(warp.config.mode),
+        str(warp.config.deterministic),
+        device.name,
+        getattr(device, "arch", None),
     )
-    return Path(folder) / f"mwjax-built-{hashlib.sha256(key.encode()).hexdigest()[:20]}"
+    return [
+        Path(folder) / f"mwjax-built-{hashlib.sha256(repr((scene, common)).encode()).hexdigest()[:20]}"
+        for scene in todo
+    ]
+
+
+# Records of the builds this process has started (`start_scene_build`), until one fails: an env
+# made meanwhile (`prebuild`) leaves its scenes to them.
+_under_way: set[Path] = set()
+
+PREBUILD_VARIABLE = "MWJAX_PREBUILD"
+
+
+def prebuild(todo: Sequence[Scene], config: PhysicsConfig) -> None:
+    """Before an env's physics first runs on a GPU, build its scenes' modules in parallel, unless
+    Warp's cache records them as built or this process is building them (`start_build`).
+    Otherwise the first step compiles them one after another (MT50 on a fresh machine: ~8 minutes
+    against ~1). A child process (`python -m mwjax.kernels`) runs the build: a pool started here
+    would re-import the caller's script in every worker (multiprocessing's spawn). Processes that
+    make envs at once (one per GPU) take turns on a lock in Warp's cache, so one of them builds.
+    `MWJAX_PREBUILD=0` skips it; a failed child leaves a warning and the modules to the first step."""
+    if os.environ.get(PREBUILD_VARIABLE, "1") == "0" or local_device().platform != "gpu":
+        return
+    records = scene_records(todo, config)
+    if records is None:
+        return
+    with _cache_lock(records[0].parent):
+        if all(record.exists() or record in _under_way for record in records):
+            return
+        progress.note(
+            f"Warp's cache ({records[0].parent}) lacks the physics kernels of {len(todo)} scenes: "
+            f"building them first, in parallel (`python -m mwjax.kernels`; {PREBUILD_VARIABLE}=0 skips)"
+        )
+        child = subprocess.run(child_command(todo, config), env=_child_environment(), check=False)
+    if child.returncode:
+        warnings.warn(
+            f"building the physics kernels in a child process failed (exit {child.returncode}); "
+            "the first step compiles them one after another instead",
+            RuntimeWarning,
+            stacklevel=2,
+        )
+
+
+def child_command(todo: Sequence[Scene], config: PhysicsConfig) -> list[str]:
+    """`python -m mwjax.kernels` for exactly these scenes and settings."""
+    spec = {"scenes": [list(scene) for scene in todo], "config": dataclasses.asdict(config)}
+    return [sys.executable, "-m", "mwjax.kernels", "--scenes", json.dumps(spec)]
+
+
+def _child_environment() -> dict[str, str]:
+    """This environment, with this mwjax first on the child's import path and this process's
+    deterministic mode (its modules differ) however it was switched on."""
+    root = str(Path(__file__).parents[1])
+    path = os.environ.get("PYTHONPATH")
+    environment = {**os.environ, "PYTHONPATH": root if not path else os.pathsep.join([root, path])}
+    if determinism.enabled():
+        environment["MWJAX_DETERMINISTIC"] = "1"
+    return environment
+
+
+@contextlib.contextmanager
+def _cache_lock(folder: Path) -> Iterator[None]:
+    folder.mkdir(parents=True, exist_ok=True)
+    with open(folder / "mwjax-build.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        try:
+            yield
+        finally:
+            fcntl.flock(lock, fcntl.LOCK_UN)
 
 
 @functools.cache
@@ -440,14 +526,26 @@ def _compile_module(
     return progress.kernel_builds().built - before, started, loading - started, time.time() - loading
 
 
-def main() -> None:
+def main(argv: Sequence[str] | None = None) -> None:
     parser = argparse.ArgumentParser(prog="python -m mwjax.kernels", description=__doc__.splitlines()[0])
-    parser.add_argument("set", help="a set name (MT10, ML45, ...) or task names separated by commas")
+    parser.add_argument(
+        "set", nargs="?", help="a set name (MT10, ML45, ...) or task names separated by commas"
+    )
+    # An env's own scenes and physics settings, as JSON (`prebuild` starts this module so).
+    parser.add_argument("--scenes", help=argparse.SUPPRESS)
     parser.add_argument("--workers", type=int, default=None, help="processes (default: CPU cores, ≤ 16)")
     parser.add_argument("--force", action="store_true", help="build even where a completed build is recorded")
     parser.add_argument("--report", action="store_true", help="print each module's times")
-    args = parser.parse_args()
-    result = build(benchmarks.parse_tasks(args.set), workers=args.workers, force=args.force)
+    args = parser.parse_args(argv)
+    if (args.set is None) == (args.scenes is None):
+        parser.error("give a set or task names")
+    if args.scenes is not None:
+        spec = json.loads(args.scenes)
+        todo = [(scene, tuple(bodies)) for scene, bodies in spec["scenes"]]
+        pending = start_scene_build(todo, PhysicsConfig(**spec["config"]), args.workers, args.force)
+        result = pending.wait()
+    else:
+        result = build(benchmarks.parse_tasks(args.set), workers=args.workers, force=args.force)
     print(f"{result.summary()}; Warp's cache: {warp.config.kernel_cache_dir}")
     if args.report and result.modules:
         print(result.report())

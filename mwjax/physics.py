@@ -265,6 +265,9 @@ class Physics:
                 f"Warp runs {' or '.join(map(repr, _CPU_GRAPH_MODES))} (or None, MJX's choice)"
             )
         self.config = config
+        from mwjax import kernels  # here: `mwjax.kernels` builds on this module
+
+        kernels.prebuild(list(dict.fromkeys((scene, bodies) for scene, bodies, _ in scenes)), config)
         groups = []
         start = 0
         for scene, mocap_bodies, size in scenes:

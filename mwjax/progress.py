@@ -223,6 +223,12 @@ def phase(label: str) -> contextlib.AbstractContextManager[None]:
     return _STATUS.phase_block(label)
 
 
+def note(text: str) -> None:
+    """A line of its own on stderr (none with `MWJAX_PROGRESS=0`)."""
+    if _STATUS.enabled:
+        _STATUS.print_line(text)
+
+
 def install() -> None:
     """Hook Warp's module compile for the status line, quiet Warp's info lines and initialize
     Warp with its CUDA-driver warning explained. Idempotent."""

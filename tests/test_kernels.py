@@ -9,6 +9,7 @@ import sys
 import threading
 import time
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -55,7 +56,8 @@ def test_a_completed_build_is_recorded_and_not_repeated(tmp_path, monkeypatch):
     assert len(calls) == 1
     assert kernels.build(["push-v3"], force=True).built == 7
     assert kernels.build(["push-v3"], mwjax.PhysicsConfig(contacts_per_env=32)).built == 7
-    assert kernels.build(["pick-place-v3"]).built == 7
+    assert kernels.build(["drawer-open-v3"]).built == 7
+    assert kernels.build(["drawer-close-v3"]).built == 0  # drawer-open's scene, recorded
     assert len(calls) == 4
     records = sorted(path.name for path in tmp_path.iterdir())
     assert len(records) == 3 and all(name.startswith("mwjax-built-") for name in records)
@@ -92,6 +94,94 @@ def test_a_started_build_compiles_while_the_caller_goes_on(tmp_path, monkeypatch
     assert result.built == 7 and len(result.modules) == 7 and pending.done
     assert [path.name.startswith("mwjax-built-") for path in tmp_path.iterdir()] == [True]
     assert kernels.start_build(["push-v3"]).done  # recorded: nothing to wait for
+
+
+def _gpu_children(monkeypatch, tmp_path, returncode=0, delay_s=0.0):
+    """`prebuild` as on a GPU, into the Warp cache `tmp_path`, its child process run here (the
+    CLI with the fake pool) and recorded; returns the list of the children's commands."""
+    monkeypatch.setattr(warp.config, "kernel_cache_dir", str(tmp_path))
+    monkeypatch.setattr(kernels, "local_device", lambda: SimpleNamespace(platform="gpu"))
+    monkeypatch.delenv(kernels.PREBUILD_VARIABLE, raising=False)
+    _fake_pool(monkeypatch)
+    commands = []
+
+    def run(command, env, check):
+        commands.append(command)
+        assert env["PYTHONPATH"].split(os.pathsep)[0] == str(ROOT)
+        time.sleep(delay_s)
+        if returncode == 0:
+            kernels.main(command[3:])
+        return subprocess.CompletedProcess(command, returncode)
+
+    monkeypatch.setattr(kernels.subprocess, "run", run)
+    return commands
+
+
+def test_an_env_on_a_gpu_builds_its_scenes_in_a_child_process_first(tmp_path, monkeypatch):
+    """Its own scenes and settings, through `python -m mwjax.kernels` of the same mwjax; once:
+    a later env of those scenes, or of some of them, finds them recorded."""
+    commands = _gpu_children(monkeypatch, tmp_path)
+    config = mwjax.PhysicsConfig(contacts_per_env=48)
+    env = mwjax.make(["push-v3", "door-open-v3"], envs_per_task=1, physics=config)
+    [command] = commands
+    assert command[:4] == [sys.executable, "-m", "mwjax.kernels", "--scenes"]
+    todo = [(g.scene, g.mocap_bodies) for g in env.physics.groups]
+    assert len(todo) == 2 and all(path.exists() for path in kernels.scene_records(todo, config))
+    mwjax.make(["door-close-v3"], envs_per_task=1, physics=config)  # door-open's scene
+    assert len(commands) == 1
+    mwjax.make(["door-close-v3"], envs_per_task=1)  # other settings: other modules
+    assert len(commands) == 2
+
+
+def test_the_prebuild_leaves_alone_cpus_opt_outs_and_builds_under_way(tmp_path, monkeypatch):
+    commands = _gpu_children(monkeypatch, tmp_path)
+    todo, config = kernels.scenes(["push-v3"]), mwjax.PhysicsConfig()
+    monkeypatch.setenv(kernels.PREBUILD_VARIABLE, "0")
+    kernels.prebuild(todo, config)
+    monkeypatch.delenv(kernels.PREBUILD_VARIABLE)
+    with monkeypatch.context() as cpu:
+        cpu.setattr(kernels, "local_device", lambda: SimpleNamespace(platform="cpu"))
+        kernels.prebuild(todo, config)
+    assert commands == []
+    release = threading.Event()
+
+    def compile_module(scene, bodies, config, identifier):
+        assert release.wait(timeout=30)
+        return 1, time.time(), 0.0, 0.0
+
+    monkeypatch.setattr(kernels, "_compile_module", compile_module)
+    pending = kernels.start_build(["push-v3"], workers=2)
+    kernels.prebuild(todo, config)  # this process's own build has them
+    assert commands == []
+    release.set()
+    assert pending.result().built == 7
+
+
+def test_processes_that_make_envs_at_once_build_once(tmp_path, monkeypatch):
+    commands = _gpu_children(monkeypatch, tmp_path, delay_s=0.5)
+    arguments = (kernels.scenes(["push-v3"]), mwjax.PhysicsConfig())
+    threads = [threading.Thread(target=kernels.prebuild, args=arguments) for _ in range(3)]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join()
+    assert len(commands) == 1
+
+
+def test_a_failed_child_warns_and_leaves_the_modules_to_the_first_step(tmp_path, monkeypatch):
+    commands = _gpu_children(monkeypatch, tmp_path, returncode=1)
+    todo, config = kernels.scenes(["push-v3"]), mwjax.PhysicsConfig()
+    with pytest.warns(RuntimeWarning, match="exit 1"):
+        kernels.prebuild(todo, config)
+    assert len(commands) == 1 and not any(path.exists() for path in kernels.scene_records(todo, config))
+
+
+def test_the_child_builds_in_this_process_s_deterministic_mode(monkeypatch):
+    # Switched on by `determinism.enable()` here, not by the variable the child would read.
+    monkeypatch.delenv("MWJAX_DETERMINISTIC", raising=False)
+    assert "MWJAX_DETERMINISTIC" not in kernels._child_environment()
+    monkeypatch.setattr(kernels.determinism, "enabled", lambda: True)
+    assert kernels._child_environment()["MWJAX_DETERMINISTIC"] == "1"
 
 
 def test_the_summary_names_the_slowest_module_and_the_last_to_finish():
@@ -208,3 +298,17 @@ def test_after_a_build_the_first_step_compiles_no_scene_module(tmp_path):
         [sys.executable, "-c", step], cwd=ROOT, env=env, capture_output=True, text=True, check=True
     )
     assert int(run.stdout.split()[-1]) <= 1, run.stdout
+
+
+@pytest.mark.slow
+def test_the_child_process_of_a_prebuild_builds_and_records_the_scenes(tmp_path):
+    # The command `prebuild` runs, for real, into a fresh Warp cache: it builds the env's scenes
+    # with its settings, and records each.
+    config = mwjax.PhysicsConfig(contacts_per_env=48)
+    todo = kernels.scenes(["push-v3", "door-open-v3"])
+    env = {**os.environ, "WARP_CACHE_PATH": str(tmp_path)}
+    command = kernels.child_command(todo, config)
+    built = subprocess.run(command, cwd=tmp_path, env=env, capture_output=True, text=True, check=True)
+    assert int(built.stdout.split()[0]) > 10, built.stdout
+    records = sorted(path.name for path in Path(tmp_path).rglob("mwjax-built-*"))
+    assert len(records) == 2, records

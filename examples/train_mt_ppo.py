@@ -44,7 +44,7 @@ import subprocess
 import sys
 import tempfile
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 from typing import Any, Literal, NamedTuple
 
@@ -707,14 +707,25 @@ def restore_checkpoint(stem: str | Path, template: Any) -> tuple[Any, int, list[
     return carry, meta["updates"], meta["curve"]
 
 
-def start_or_resume(trainer: Any, seed: int, checkpoint: str | Path | None) -> tuple[Any, int, list[dict]]:
+def start_or_resume(
+    trainer: Any, seed: int | Sequence[int], checkpoint: str | Path | None
+) -> tuple[Any, int, list]:
     """`(carry, updates done, curve)`: a fresh `trainer.init`, or the learner saved at
-    `checkpoint` (if there is one) in a template whose episodes differ from the first run's."""
+    `checkpoint` (if there is one) in a template whose episodes differ from the first run's.
+    With a list of seeds (`train_seeds`), their carries stacked and a curve per seed."""
+    seeds = [seed] if isinstance(seed, int) else list(seed)
+
+    def fresh(done: int) -> Any:
+        keys = [jax.random.key(s) if not done else jax.random.fold_in(jax.random.key(s), done) for s in seeds]
+        carries = [trainer.init(key) for key in keys]
+        return carries[0] if isinstance(seed, int) else jax.tree.map(lambda *x: jnp.stack(x), *carries)
+
     if checkpoint is None or not Path(f"{checkpoint}.npz").exists():
-        return trainer.init(jax.random.key(seed)), 0, []
-    done = json.loads(Path(f"{checkpoint}.json").read_text())["updates"]
-    template = trainer.init(jax.random.fold_in(jax.random.key(seed), done))
-    carry, updates, curve = restore_checkpoint(checkpoint, template)
+        return fresh(0), 0, ([] if isinstance(seed, int) else [[] for _ in seeds])
+    meta = json.loads(Path(f"{checkpoint}.json").read_text())
+    if not isinstance(seed, int) and len(meta["curve"]) != len(seeds):
+        raise ValueError(f"{checkpoint} holds {len(meta['curve'])} seeds' runs, this run has {len(seeds)}")
+    carry, updates, curve = restore_checkpoint(checkpoint, fresh(meta["updates"]))
     print(f"resumed {checkpoint} at update {updates}", flush=True)
     return carry, updates, curve
 
@@ -799,33 +810,40 @@ def train_seeds(
     max_updates: int | None = None,
     eval_episodes: int = 50,
     kernels: Any = None,
+    checkpoint: str | Path | None = None,
 ) -> list[dict]:
     """Train every seed of `seeds` at once in one program on one device (`--vmap-seeds`): their
     carries stacked on a leading axis, each update `jax.vmap`ped over them, so one device call
     gives a distribution. The seeds share one env, so its goal variants come from `config.seed`;
     each seed has its own initial parameters, resets, exploration and minibatches. One run
-    (`train`'s result) per seed; wall clock, training and evaluation time are the program's."""
+    (`train`'s result) per seed; wall clock, training and evaluation time are the program's.
+    `checkpoint` holds all the seeds' learners and curves, saved after every chunk and resumed
+    from as `train`'s is."""
     if config.devices > 1:
         raise ValueError("seeds in one program run on one device; train with --devices 1")
     start = time.perf_counter()
     with progress.phase(f"building the envs and {len(seeds)} seeds' first states"):
         trainer = Trainer(config)
-        carries = [trainer.init(jax.random.key(seed)) for seed in seeds]
-        loop = _Loop(jax.tree.map(lambda *x: jnp.stack(x), *carries), 0)
-        del carries
-    budget = minutes * 60
+        carry, updates, curves = start_or_resume(trainer, seeds, checkpoint)
+        loop = _Loop(carry, updates)
+        del carry
+    # The curves' wall clock runs on across resumed runs.
+    resumed_s = curves[0][-1]["wall_s"] if curves[0] else 0.0
+    start -= resumed_s
+    budget = minutes * 60 + resumed_s
     print(
         f"{config.task_set}: {len(seeds)} seeds x {trainer.env.num_envs} envs, "
         f"{len(seeds) * trainer.steps_per_update:,} env steps per update",
         flush=True,
     )
-    curves: list[list[dict]] = [[] for _ in seeds]
     for metrics in _chunks(trainer.train_chunks, loop, start, budget, log_every, max_updates, kernels):
         wall_s = time.perf_counter() - start
         for i, seed in enumerate(seeds):
             own = jax.tree.map(lambda x, i=i: x[i], metrics)
             curves[i].append(_row(own, loop.updates, trainer, wall_s))
             _progress(curves[i][-1], budget, own.episodes, f"seed {seed} ")
+        if checkpoint is not None:
+            save_checkpoint(checkpoint, loop.carry, loop.updates, curves)
     train_s = time.perf_counter() - start
     t0 = time.perf_counter()
     carry = loop.carry
@@ -1163,7 +1181,8 @@ def main() -> None:
     parser.add_argument(
         "--checkpoint",
         default=None,
-        help="stem to save to after every chunk and resume from (STEM-seed<k>.npz/.json; one device)",
+        help="stem to save to after every chunk and resume from (STEM-seed<k>.npz/.json; one device; "
+        "--vmap-seeds: STEM-seeds<k>-<l>-....npz/.json)",
     )
     add_combine_argument(parser)
     args = parser.parse_args()
@@ -1177,7 +1196,6 @@ def main() -> None:
             for flag, on in [
                 ("--parallel", args.parallel > 1),
                 ("--devices", args.devices != "1"),
-                ("--checkpoint", args.checkpoint is not None),
                 ("--video", args.video is not None),
                 ("--time-learner", args.time_learner),
             ]
@@ -1245,6 +1263,7 @@ def main() -> None:
             args.updates,
             args.eval_episodes,
             kernels,
+            None if args.checkpoint is None else f"{args.checkpoint}-seeds{'-'.join(map(str, args.seeds))}",
         )
         for run in runs:
             run.pop("params")

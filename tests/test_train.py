@@ -395,13 +395,42 @@ def test_seeds_in_one_program_train_as_each_seed_alone(trainer):
     assert any(not np.allclose(a, b) for a, b in zip(first, second, strict=True))  # two seeds, not one
 
 
+def test_seeds_in_one_program_checkpoint_and_resume_together(trainer, tmp_path):
+    stem = tmp_path / "seeds"
+    carry, updates, curves = ppo.start_or_resume(trainer, [0, 3], stem)
+    assert updates == 0 and curves == [[], []]
+    assert all(x.shape[0] == 2 for x in jax.tree.leaves(ppo._learner(carry)))
+    curves = [[{"updates": 2, "wall_s": 1.0}], [{"updates": 2, "wall_s": 1.0}]]
+    ppo.save_checkpoint(stem, carry, 2, curves)
+    restored, updates, restored_curves = ppo.start_or_resume(trainer, [0, 3], stem)
+    assert updates == 2 and restored_curves == curves
+    learner = [jax.tree.map(np.asarray, ppo._learner(c)) for c in (carry, restored)]
+    for a, b in zip(*map(jax.tree.leaves, learner), strict=True):
+        np.testing.assert_array_equal(a, b)
+    with pytest.raises(ValueError, match="holds 2 seeds' runs, this run has 3"):
+        ppo.start_or_resume(trainer, [0, 3, 4], stem)
+
+
+@pytest.mark.slow
+def test_seeds_in_one_program_resume_from_their_checkpoint(tmp_path):
+    def run(updates):
+        return ppo.train_seeds(
+            CONFIG, [0, 3], 60.0, log_every=1, max_updates=updates, eval_episodes=1, checkpoint=tmp_path / "s"
+        )
+
+    first, second = run(1), run(2)
+    for before, after in zip(first, second, strict=True):
+        assert [r["updates"] for r in after["curve"]] == [1, 2] and after["curve"][0] == before["curve"][0]
+        assert after["curve"][1]["wall_s"] > before["curve"][0]["wall_s"]
+
+
 def test_seeds_in_one_program_refuse_per_seed_options(monkeypatch, capsys):
-    argv = ["train_mt_ppo.py", "--seeds", "0", "1", "--vmap-seeds", "--checkpoint", "c", "--parallel", "2"]
+    argv = ["train_mt_ppo.py", "--seeds", "0", "1", "--vmap-seeds", "--video", "v", "--parallel", "2"]
     monkeypatch.setattr(sys, "argv", argv)
     monkeypatch.setattr(kernels, "start_build", lambda tasks: pytest.fail("a refused run builds nothing"))
     with pytest.raises(SystemExit) as exit:
         ppo.main()
-    assert exit.value.code == 2 and "drop --parallel, --checkpoint" in capsys.readouterr().err
+    assert exit.value.code == 2 and "drop --parallel, --video" in capsys.readouterr().err
 
 
 def test_task_curves_follow_each_task_of_each_seed():

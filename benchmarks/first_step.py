@@ -1,0 +1,82 @@
+"""How long a user waits for a first env step: from `mwjax.make` to the result of `jit(env.step)`,
+in this process, each phase timed apart.
+
+    XLA_PYTHON_CLIENT_MEM_FRACTION=0.45 python benchmarks/first_step.py --set MT50 --envs-per-task 1024
+    python benchmarks/first_step.py --set reach-v3 --envs-per-task 1          # CPU
+
+Phases: `make` (on a GPU it first builds the scenes' Warp kernels in parallel where Warp's cache
+lacks them, `mwjax.kernels.prebuild`), then for the reset and for one step of zero actions: tracing
+and lowering, XLA's compile (a read where JAX's persistent cache has the program) and the run.
+Run on a fresh machine (empty Warp and JAX caches) it is the cold first step, run again the warm
+one. Writes `results/compile/first-step-<set>-<commit>-<device>-<date>.json` (or `--out`).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+from common import commit, provenance, result_path, tasks_arg
+
+
+def timed(phases: dict[str, float], name: str, work: Callable[[], Any]) -> Any:
+    """`work()`, its seconds recorded as `phases[name]` and printed."""
+    start = time.perf_counter()
+    result = work()
+    phases[name] = round(time.perf_counter() - start, 2)
+    print(f"{name}: {phases[name]:.2f} s", flush=True)
+    return result
+
+
+def main(argv: list[str] | None = None) -> dict:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--set", default="MT50", help="a set name, MT1:<task>, or tasks separated by commas")
+    parser.add_argument("--envs-per-task", type=int, default=1024)
+    parser.add_argument("--out", type=Path, default=None, help="the result JSON (default: results/compile/)")
+    args = parser.parse_args(argv)
+    import jax
+    import jax.numpy as jnp
+    import numpy as np
+    import warp
+
+    import mwjax
+    from mwjax import progress
+    from mwjax.physics import DROPPED
+
+    phases: dict[str, float] = {}
+    start = time.perf_counter()
+    env = timed(phases, "make", lambda: mwjax.make(tasks_arg(args.set), envs_per_task=args.envs_per_task))
+    key = jax.random.key(0)
+    reset = timed(phases, "reset_lower", lambda: jax.jit(env.reset).lower(key))
+    reset = timed(phases, "reset_compile", reset.compile)
+    state = timed(phases, "reset_run", lambda: jax.block_until_ready(reset(key)))
+    actions = jnp.zeros((env.num_envs, 4))
+    step = timed(phases, "step_lower", lambda: jax.jit(env.step).lower(state, actions))
+    step = timed(phases, "step_compile", step.compile)
+    state = timed(phases, "step_run", lambda: jax.block_until_ready(step(state, actions)))
+    total = time.perf_counter() - start
+    builds = progress.kernel_builds()
+    result = {
+        **provenance(),
+        "set": args.set,
+        "envs": env.num_envs,
+        "phases_s": phases,
+        "make_to_first_step_s": round(total, 2),
+        "kernel_modules_built_in_this_process": builds.built,
+        "kernel_modules_loaded_from_cache": builds.cached,
+        "warp_cache": warp.config.kernel_cache_dir,
+        "overflow_envs": int(np.count_nonzero(np.asarray(state.info["physics_overflow"]) & int(DROPPED))),
+    }
+    print(f"from mwjax.make to the first step's result: {total:.1f} s", flush=True)
+    path = args.out or result_path("compile", f"first-step-{args.set.replace(':', '-')}", ".json")
+    path.write_text(json.dumps(result, indent=2) + "\n")
+    print(f"-> {path} ({commit()[:7]})")
+    return result
+
+
+if __name__ == "__main__":
+    main()

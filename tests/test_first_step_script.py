@@ -1,0 +1,25 @@
+"""`benchmarks/first_step.py`: from `mwjax.make` to a first step, phase by phase, and its result file."""
+
+from __future__ import annotations
+
+import importlib.util
+import json
+from pathlib import Path
+
+BENCHMARKS = Path(__file__).parents[1] / "benchmarks"
+
+
+def test_the_wait_for_a_first_step_is_timed_phase_by_phase(tmp_path, monkeypatch):
+    monkeypatch.syspath_prepend(str(BENCHMARKS))  # the script imports its sibling `common`
+    spec = importlib.util.spec_from_file_location("first_step", BENCHMARKS / "first_step.py")
+    first_step = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(first_step)
+    out = tmp_path / "first-step.json"
+    result = first_step.main(["--set", "reach-v3", "--envs-per-task", "1", "--out", str(out)])
+    assert json.loads(out.read_text()) == result
+    phases = result["phases_s"]
+    names = ["make", "reset_lower", "reset_compile", "reset_run", "step_lower", "step_compile", "step_run"]
+    assert list(phases) == names and all(seconds >= 0 for seconds in phases.values())
+    assert result["make_to_first_step_s"] >= sum(phases.values()) - 0.01 * len(phases)  # rounding
+    assert result["envs"] == 1 and result["overflow_envs"] == 0
+    assert result["device"] and result["command"].startswith("python") and result["commit"]

@@ -299,7 +299,7 @@ def prebuild(todo: Sequence[Scene], config: PhysicsConfig) -> None:
     if os.environ.get(PREBUILD_VARIABLE, "1") == "0" or local_device().platform != "gpu":
         return
     records = scene_records(todo, config)
-    if records is None:
+    if not records:
         return
     with _cache_lock(records[0].parent):
         if all(record.exists() or record in _under_way for record in records):
@@ -337,6 +337,7 @@ def _child_environment() -> dict[str, str]:
 
 @contextlib.contextmanager
 def _cache_lock(folder: Path) -> Iterator[None]:
+    """Held by one process (or thread) at a time, across the processes that share `folder`."""
     folder.mkdir(parents=True, exist_ok=True)
     with open(folder / "mwjax-build.lock", "w") as lock:
         fcntl.flock(lock, fcntl.LOCK_EX)

@@ -301,18 +301,22 @@ def prebuild(todo: Sequence[Scene], config: PhysicsConfig) -> None:
     records = scene_records(todo, config)
     if not records:
         return
-    with _cache_lock(records[0].parent):
-        if all(record.exists() or record in _under_way for record in records):
-            return
-        progress.note(
-            f"Warp's cache ({records[0].parent}) lacks the physics kernels of {len(todo)} scenes: "
-            f"building them first, in parallel (`python -m mwjax.kernels`; {PREBUILD_VARIABLE}=0 skips)"
-        )
-        child = subprocess.run(child_command(todo, config), env=_child_environment(), check=False)
-    if child.returncode:
+    try:
+        with _cache_lock(records[0].parent):
+            if all(record.exists() or record in _under_way for record in records):
+                return
+            progress.note(
+                f"Warp's cache ({records[0].parent}) lacks the physics kernels of {len(todo)} scenes: "
+                f"building them first, in parallel (`python -m mwjax.kernels`; {PREBUILD_VARIABLE}=0 skips)"
+            )
+            child = subprocess.run(child_command(todo, config), env=_child_environment(), check=False)
+            failure = f"exit {child.returncode}" if child.returncode else None
+    except OSError as error:  # e.g. a cache folder this process cannot write
+        failure = str(error)
+    if failure is not None:
         warnings.warn(
-            f"building the physics kernels in a child process failed (exit {child.returncode}); "
-            "the first step compiles them one after another instead",
+            f"building the physics kernels in a child process failed ({failure}); the first step "
+            "compiles them one after another instead",
             RuntimeWarning,
             stacklevel=2,
         )

@@ -176,6 +176,15 @@ def test_a_failed_child_warns_and_leaves_the_modules_to_the_first_step(tmp_path,
     assert len(commands) == 1 and not any(path.exists() for path in kernels.scene_records(todo, config))
 
 
+def test_a_cache_folder_that_cannot_be_written_warns_instead_of_failing_the_env(tmp_path, monkeypatch):
+    commands = _gpu_children(monkeypatch, tmp_path)
+    (tmp_path / "file").write_text("")
+    monkeypatch.setattr(warp.config, "kernel_cache_dir", str(tmp_path / "file" / "cache"))
+    with pytest.warns(RuntimeWarning, match="the first step compiles them"):
+        kernels.prebuild(kernels.scenes(["push-v3"]), mwjax.PhysicsConfig())
+    assert commands == []
+
+
 def test_the_child_builds_in_this_process_s_deterministic_mode(monkeypatch):
     # Switched on by `determinism.enable()` here, not by the variable the child would read.
     monkeypatch.delenv("MWJAX_DETERMINISTIC", raising=False)

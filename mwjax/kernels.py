@@ -309,7 +309,12 @@ def prebuild(todo: Sequence[Scene], config: PhysicsConfig) -> None:
                 f"Warp's cache ({records[0].parent}) lacks the physics kernels of {len(todo)} scenes: "
                 f"building them first, in parallel (`python -m mwjax.kernels`; {PREBUILD_VARIABLE}=0 skips)"
             )
-            child = subprocess.run(child_command(todo, config), env=_child_environment(), check=False)
+            # Its summary on stdout comes back as a status line; its progress shows as it goes.
+            child = subprocess.run(
+                child_command(todo, config), env=_child_environment(), stdout=subprocess.PIPE, text=True
+            )
+            if child.stdout.strip():
+                progress.note(child.stdout.strip())
             failure = f"exit {child.returncode}" if child.returncode else None
     except OSError as error:  # e.g. a cache folder this process cannot write
         failure = str(error)

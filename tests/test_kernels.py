@@ -105,24 +105,25 @@ def _gpu_children(monkeypatch, tmp_path, returncode=0, delay_s=0.0):
     _fake_pool(monkeypatch)
     commands = []
 
-    def run(command, env, check):
+    def run(command, env, stdout, text):
         commands.append(command)
         assert env["PYTHONPATH"].split(os.pathsep)[0] == str(ROOT)
         time.sleep(delay_s)
         if returncode == 0:
             kernels.main(command[3:])
-        return subprocess.CompletedProcess(command, returncode)
+        return subprocess.CompletedProcess(command, returncode, stdout="7 kernel modules built\n")
 
     monkeypatch.setattr(kernels.subprocess, "run", run)
     return commands
 
 
-def test_an_env_on_a_gpu_builds_its_scenes_in_a_child_process_first(tmp_path, monkeypatch):
+def test_an_env_on_a_gpu_builds_its_scenes_in_a_child_process_first(tmp_path, monkeypatch, capsys):
     """Its own scenes and settings, through `python -m mwjax.kernels` of the same mwjax; once:
     a later env of those scenes, or of some of them, finds them recorded."""
     commands = _gpu_children(monkeypatch, tmp_path)
     config = mwjax.PhysicsConfig(contacts_per_env=48)
     env = mwjax.make(["push-v3", "door-open-v3"], envs_per_task=1, physics=config)
+    assert "7 kernel modules built" in capsys.readouterr().err  # the child's summary, as a status line
     [command] = commands
     assert command[:4] == [sys.executable, "-m", "mwjax.kernels", "--scenes"]
     todo = [(g.scene, g.mocap_bodies) for g in env.physics.groups]

@@ -555,7 +555,12 @@ def main(argv: Sequence[str] | None = None) -> None:
         pending = start_scene_build(todo, PhysicsConfig(**spec["config"]), args.workers, args.force)
         result = pending.wait()
     else:
-        result = build(benchmarks.parse_tasks(args.set), workers=args.workers, force=args.force)
+        try:
+            tasks = benchmarks.parse_tasks(args.set)
+            benchmarks.benchmark(tasks)
+        except ValueError as error:
+            parser.error(str(error))
+        result = build(tasks, workers=args.workers, force=args.force)
     print(f"{result.summary()}; Warp's cache: {warp.config.kernel_cache_dir}")
     if args.report and result.modules:
         print(result.report())

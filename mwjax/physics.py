@@ -168,6 +168,12 @@ class PhysicsConfig:
     box_box_collider: str = "box_box"
 
     def __post_init__(self) -> None:
+        for name in ("substeps", "contacts_per_env", "iterations", "ls_iterations"):
+            value = getattr(self, name)
+            optional = name in ("iterations", "ls_iterations")
+            if not (optional and value is None) and not (_is_int(value) and value >= 1):
+                allowed = "a positive int" + (" or None" if optional else "")
+                raise ValueError(f"{name} must be {allowed}, not {value!r}")
         rows = self.constraints_per_env
         if rows != "per_scene" and not (isinstance(rows, int) and rows >= 1):
             raise ValueError(f"constraints_per_env must be a positive int or 'per_scene', not {rows!r}")
@@ -180,6 +186,10 @@ class PhysicsConfig:
                 f"{self.contacts_per_env}], not {pairs!r}"
             )
         _graph_mode(self.graph_mode)
+
+
+def _is_int(value: object) -> bool:
+    return isinstance(value, int) and not isinstance(value, bool)
 
 
 @jax.tree_util.register_dataclass

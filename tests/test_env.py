@@ -209,6 +209,10 @@ def test_bad_arguments():
     for pairs in (0, 65, "per_env"):
         with pytest.raises(ValueError, match="ccd_pairs_per_env"):
             mwjax.PhysicsConfig(ccd_pairs_per_env=pairs)
+    for name, value in [("contacts_per_env", 0), ("substeps", 0), ("iterations", -1), ("ls_iterations", 2.5)]:
+        with pytest.raises(ValueError, match=f"{name} must be a positive int"):
+            mwjax.PhysicsConfig(**{name: value})
+    assert mwjax.PhysicsConfig(iterations=10, ls_iterations=None).iterations == 10
 
 
 def test_constraint_buffers_hold_twice_what_mujoco_c_reaches_in_each_scene(env):

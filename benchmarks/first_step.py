@@ -49,7 +49,10 @@ def main(argv: list[str] | None = None) -> dict:
 
     phases: dict[str, float] = {}
     start = time.perf_counter()
-    env = timed(phases, "make", lambda: mwjax.make(tasks_arg(args.set), envs_per_task=args.envs_per_task))
+    try:
+        env = timed(phases, "make", lambda: mwjax.make(tasks_arg(args.set), envs_per_task=args.envs_per_task))
+    except ValueError as error:  # an unknown set, a batch that is not a positive int
+        parser.error(str(error))
     key = jax.random.key(0)
     reset = timed(phases, "reset_lower", lambda: jax.jit(env.reset).lower(key))
     reset = timed(phases, "reset_compile", reset.compile)

@@ -6,14 +6,21 @@ import importlib.util
 import json
 from pathlib import Path
 
+import pytest
+
 BENCHMARKS = Path(__file__).parents[1] / "benchmarks"
 
 
-def test_the_wait_for_a_first_step_is_timed_phase_by_phase(tmp_path, monkeypatch):
+@pytest.fixture
+def first_step(monkeypatch):
     monkeypatch.syspath_prepend(str(BENCHMARKS))  # the script imports its sibling `common`
     spec = importlib.util.spec_from_file_location("first_step", BENCHMARKS / "first_step.py")
-    first_step = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(first_step)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_the_wait_for_a_first_step_is_timed_phase_by_phase(first_step, tmp_path):
     out = tmp_path / "first-step.json"
     result = first_step.main(["--set", "reach-v3", "--envs-per-task", "1", "--out", str(out)])
     assert json.loads(out.read_text()) == result
@@ -23,3 +30,11 @@ def test_the_wait_for_a_first_step_is_timed_phase_by_phase(tmp_path, monkeypatch
     assert result["make_to_first_step_s"] >= sum(phases.values()) - 0.01 * len(phases)  # rounding
     assert result["envs"] == 1 and result["overflow_envs"] == 0
     assert result["device"] and result["command"].startswith("python") and result["commit"]
+
+
+def test_bad_arguments_end_in_a_usage_error(first_step, tmp_path, capsys):
+    cases = [(["--set", "MT11"], "unknown benchmark 'MT11'"), (["--envs-per-task", "0"], "positive")]
+    for argv, message in cases:
+        with pytest.raises(SystemExit) as exit:
+            first_step.main([*argv, "--out", str(tmp_path / "x.json")])
+        assert exit.value.code == 2 and message in capsys.readouterr().err

@@ -57,6 +57,7 @@ import optax
 import mwjax
 from mwjax import progress
 from mwjax.benchmarks import Benchmark, benchmark
+from mwjax.config import EnvConfig
 from mwjax.observation import OBS_SIZE
 
 try:  # imported as `examples.train_ml_rl2` (tests) or run as a script from examples/
@@ -722,7 +723,17 @@ def main() -> None:
     if ppo.combined(parser, args, lambda runs, device, origin: write_results(runs, args, device, origin)):
         return
     try:
-        kernels = ppo.start_kernels(benchmark(args.set, task=args.task))
+        bench = benchmark(args.set, task=args.task)
+        if not bench.meta_learning:
+            raise ValueError(f"RL² trains on a meta-learning set (ML10, ML25, ML45, ML1), not {args.set}")
+        # The env's arguments first: on the CPU nothing else reads them before the first seed.
+        EnvConfig(
+            bench,
+            envs_per_task=args.envs_per_task,
+            reward_version=args.reward_version,
+            max_episode_steps=args.max_episode_steps,
+        )
+        kernels = ppo.start_kernels(bench)
     except ValueError as error:
         parser.error(str(error))
     if args.parallel > 1 and len(args.seeds) > 1:

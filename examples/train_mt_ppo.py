@@ -57,7 +57,8 @@ from jax.sharding import PartitionSpec as P
 import mwjax
 from mwjax import distributed, progress, rendering
 from mwjax.batching import cond_any
-from mwjax.benchmarks import parse_tasks
+from mwjax.benchmarks import benchmark, parse_tasks
+from mwjax.config import EnvConfig
 from mwjax.evaluation import evaluator
 from mwjax.observation import OBS_SIZE
 from mwjax.sharding import AXIS
@@ -1206,6 +1207,9 @@ def main() -> None:
                 f"--vmap-seeds trains every seed in one program on one device: drop {', '.join(clash)}"
             )
     try:
+        # The env's arguments first: on the CPU nothing else reads them before the first seed.
+        EnvConfig(task_set(args.set), envs_per_task=args.envs_per_task, reward_version=args.reward_version)
+        benchmark(task_set(args.set))
         kernels = start_kernels(task_set(args.set))
     except ValueError as error:
         parser.error(str(error))

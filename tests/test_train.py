@@ -424,6 +424,22 @@ def test_seeds_in_one_program_resume_from_their_checkpoint(tmp_path):
         assert after["curve"][1]["wall_s"] > before["curve"][0]["wall_s"]
 
 
+@pytest.mark.parametrize(
+    ("argv", "message"),
+    [
+        (["--set", "MT11"], "unknown benchmark 'MT11'"),
+        (["--envs-per-task", "0"], "envs_per_task must be a positive int"),
+        (["--reward-version", "v3"], "reward_version must be 'v1' or 'v2'"),
+    ],
+)
+def test_bad_arguments_end_in_a_usage_error_before_any_work(monkeypatch, capsys, argv, message):
+    monkeypatch.setattr(sys, "argv", ["train_mt_ppo.py", *argv])
+    monkeypatch.setattr(ppo, "train", lambda *args, **kwargs: pytest.fail("a refused run trains nothing"))
+    with pytest.raises(SystemExit) as exit:
+        ppo.main()
+    assert exit.value.code == 2 and message in capsys.readouterr().err
+
+
 def test_seeds_in_one_program_refuse_per_seed_options(monkeypatch, capsys):
     argv = ["train_mt_ppo.py", "--seeds", "0", "1", "--vmap-seeds", "--video", "v", "--parallel", "2"]
     monkeypatch.setattr(sys, "argv", argv)

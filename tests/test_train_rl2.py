@@ -277,6 +277,23 @@ def test_seeds_in_parallel_make_one_summary(tmp_path, monkeypatch):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["run-seed0.log", "run-seed1.log", "run.json"]
 
 
+@pytest.mark.parametrize(
+    ("argv", "message"),
+    [
+        (["--set", "MT10"], "RL² trains on a meta-learning set"),
+        (["--set", "ML1"], "ML1 needs task="),
+        (["--envs-per-task", "0"], "envs_per_task must be a positive int"),
+        (["--max-episode-steps", "0"], "max_episode_steps must be a positive int"),
+    ],
+)
+def test_bad_arguments_end_in_a_usage_error_before_any_work(monkeypatch, capsys, argv, message):
+    monkeypatch.setattr(sys, "argv", ["train_ml_rl2.py", *argv])
+    monkeypatch.setattr(rl2, "train", lambda *args, **kwargs: pytest.fail("a refused run trains nothing"))
+    with pytest.raises(SystemExit) as exit:
+        rl2.main()
+    assert exit.value.code == 2 and message in capsys.readouterr().err
+
+
 def test_combine_summarizes_seeds_trained_by_separate_invocations(tmp_path, monkeypatch):
     """`--combine`: the RL² example's seeds from separate device calls, one summary."""
     files = []

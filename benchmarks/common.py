@@ -3,6 +3,7 @@ and buffer arguments as the command line spells them, and where results go."""
 
 from __future__ import annotations
 
+import argparse
 import datetime
 import os
 import platform
@@ -59,6 +60,18 @@ def result_path(kind: str, name: str, suffix: str, device: str | None = None) ->
     path = RESULTS / kind / f"{stem}{suffix}"
     path.parent.mkdir(parents=True, exist_ok=True)
     return path
+
+
+def set_arg(text: str) -> str:
+    """`--set` checked where the command line is read: the text back, or a usage error that names
+    the known sets (imports mwjax: not for a parent process that must not start Warp)."""
+    from mwjax.benchmarks import benchmark, parse_tasks
+
+    try:
+        benchmark(parse_tasks(text))
+    except ValueError as error:
+        raise argparse.ArgumentTypeError(str(error)) from None
+    return text
 
 
 def tasks_arg(text: str) -> str | list[str]:

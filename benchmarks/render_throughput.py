@@ -31,7 +31,7 @@ from pathlib import Path  # noqa: E402
 
 import jax  # noqa: E402
 import jax.numpy as jnp  # noqa: E402
-from common import RESULTS, commit  # noqa: E402
+from common import RESULTS, commit, set_arg  # noqa: E402
 
 import mwjax  # noqa: E402
 from mwjax import rendering  # noqa: E402
@@ -194,7 +194,7 @@ def video(args) -> None:
 
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--sets", nargs="+", default=["MT1:pick-place-v3", "MT10"])
+    p.add_argument("--sets", type=set_arg, nargs="+", default=["MT1:pick-place-v3", "MT10"])
     p.add_argument("--batch", type=int, nargs="+", default=[8192], help="total envs (MT10: a multiple of 10)")
     p.add_argument("--sizes", type=int, nargs="+", default=[64, 128])
     p.add_argument("--steps", type=int, default=100, help="env steps per timed rollout")

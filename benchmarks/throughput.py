@@ -42,7 +42,7 @@ from pathlib import Path
 import jax
 import jax.numpy as jnp
 import numpy as np
-from common import build_kernels, provenance, result_path, rows_arg, tasks_arg
+from common import build_kernels, provenance, result_path, rows_arg, set_arg, tasks_arg
 
 import mwjax
 from mwjax.benchmarks import task_names
@@ -287,7 +287,13 @@ def plot(result: dict, path: Path) -> None:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--sets", nargs="+", default=["MT1:pick-place-v3", "MT10"], help="task sets")
+    parser.add_argument(
+        "--sets",
+        type=set_arg,
+        nargs="+",
+        default=["MT1:pick-place-v3", "MT10"],
+        help="task sets",
+    )
     parser.add_argument("--batch", nargs="+", type=int, default=[1000, 4000], help="total envs per set")
     parser.add_argument("--steps", type=int, default=EPISODE, help="steps per rollout (500: the protocol)")
     parser.add_argument("--repeats", type=int, default=1, help="timed rollouts per row (the best counts)")

@@ -56,7 +56,7 @@ def main(argv: list[str] | None = None) -> dict:
     start = time.perf_counter()
     try:
         env = timed(phases, "make", lambda: mwjax.make(tasks_arg(args.set), envs_per_task=args.envs_per_task))
-    except ValueError as error:  # an unknown set, a batch that is not a positive int
+    except ValueError as error:  # a batch that is not a positive int (`set_arg` checked the set)
         parser.error(str(error))
     key = jax.random.key(0)
     reset = timed(phases, "reset_lower", lambda: jax.jit(env.reset).lower(key))

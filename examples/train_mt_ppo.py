@@ -1208,9 +1208,10 @@ def main() -> None:
             )
     try:
         # The env's arguments first: on the CPU nothing else reads them before the first seed.
-        EnvConfig(task_set(args.set), envs_per_task=args.envs_per_task, reward_version=args.reward_version)
-        benchmark(task_set(args.set))
-        kernels = start_kernels(task_set(args.set))
+        tasks = task_set(args.set)
+        EnvConfig(tasks, envs_per_task=args.envs_per_task, reward_version=args.reward_version)
+        benchmark(tasks)
+        kernels = start_kernels(tasks)
     except ValueError as error:
         parser.error(str(error))
     if kernels is not None and (args.devices != "1" or (args.parallel > 1 and len(args.seeds) > 1)):

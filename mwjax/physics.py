@@ -14,7 +14,7 @@ import dataclasses
 import functools
 import warnings
 from collections.abc import Callable, Sequence
-from typing import Literal
+from typing import Any, Literal
 
 import jax
 import jax.numpy as jnp
@@ -32,6 +32,7 @@ from mwjax import (
     determinism,
     host_call,
     progress,
+    scene_streams,
     warp_ast,
     warp_call_ids,
     warp_cpu_graphs,
@@ -166,6 +167,12 @@ class PhysicsConfig:
     # "box_box": Warp's port of MuJoCo C's `mjc_BoxBox` (C's collider, see `warp_model`);
     # "convex": Warp's general convex collider (GJK/EPA), MJX-Warp's own default.
     box_box_collider: str = "box_box"
+    # Whether an env step runs its scenes' Warp calls as one FFI call, each scene on its own CUDA
+    # stream (`mwjax.scene_streams`): None is on for two scenes or more on a GPU in the default
+    # graph mode ("warp") outside `mwjax.determinism`, off otherwise. True on the CPU runs the same
+    # single call, the scenes one after another (a check of the plumbing; slower than Warp's
+    # replayed calls there).
+    concurrent_scenes: bool | None = None
 
     def __post_init__(self) -> None:
         for name in ("substeps", "contacts_per_env", "iterations", "ls_iterations"):
@@ -186,6 +193,8 @@ class PhysicsConfig:
                 f"{self.contacts_per_env}], not {pairs!r}"
             )
         _graph_mode(self.graph_mode)
+        if self.concurrent_scenes not in (None, True, False):
+            raise ValueError(f"concurrent_scenes must be None, True or False, not {self.concurrent_scenes!r}")
 
 
 def _is_int(value: object) -> bool:
@@ -274,6 +283,13 @@ class Physics:
                 f"graph_mode={config.graph_mode!r} captures CUDA graphs and needs a GPU; on the CPU "
                 f"Warp runs {' or '.join(map(repr, _CPU_GRAPH_MODES))} (or None, MJX's choice)"
             )
+        on_gpu = local_device().platform == "gpu"
+        own_graphs = config.graph_mode in (None, "warp") and not determinism.enabled()
+        if config.concurrent_scenes and on_gpu and not own_graphs:
+            raise ValueError(
+                "concurrent_scenes=True captures each scene's CUDA graphs itself, as graph_mode='warp' "
+                f"does; it cannot run with graph_mode={config.graph_mode!r} or under mwjax.determinism"
+            )
         self.config = config
         from mwjax import kernels  # here: `mwjax.kernels` builds on this module
 
@@ -309,6 +325,11 @@ class Physics:
         # of MT50's ~100 call sites it dominated the step's lowering. Jitted, it is traced once
         # per scene (it makes no Warp call, so sharing its trace shares no captured graph).
         self._made: dict[tuple[int, int], Callable[[], mjx.Data]] = {}
+        self.concurrent = (
+            config.concurrent_scenes
+            if config.concurrent_scenes is not None
+            else on_gpu and own_graphs and len(groups) > 1
+        )
 
     def make_data(self) -> tuple[PhysicsState, ...]:
         """Fresh batched states (the scene's qpos0, poses not yet computed), one per group."""
@@ -366,10 +387,11 @@ class Physics:
         """`substeps` physics steps, then kinematics so positions describe the new state. The
         overflow flags of the result are those this step raised; a buffer that dropped something
         in a scene for the first time raises a `PhysicsOverflowWarning` on the host."""
-        stepped = tuple(
-            self.step_group(g, state.replace(overflow=jnp.zeros_like(state.overflow)))
-            for g, state in enumerate(states)
-        )
+        cleared = tuple(state.replace(overflow=jnp.zeros_like(state.overflow)) for state in states)
+        if self.concurrent:
+            stepped = merge_rows(self._step_all)(cleared)
+        else:
+            stepped = tuple(self.step_group(g, state) for g, state in enumerate(cleared))
         self._warn_on_host(stepped)
         return stepped
 
@@ -377,19 +399,31 @@ class Physics:
         """`step` for group `g` alone (a batch of any size). `fresh_poses=False` leaves the poses
         as MuJoCo C's `mj_step` does, computed before the last substep's integration. Under an
         outer `jax.vmap`, one Warp batch of every instance's rows (`merge_rows` says why)."""
-        return merge_rows(functools.partial(self._step_rows, g, fresh_poses=fresh_poses))(state)
+        step = functools.partial(self._step_rows, (g,), fresh_poses=fresh_poses, issue=_in_turn)
+        return merge_rows(lambda s: step((s,))[0])(state)
 
-    def _step_rows(self, g: int, state: PhysicsState, fresh_poses: bool) -> PhysicsState:
-        step = self._substep[g]
+    def _step_all(self, states: tuple[PhysicsState, ...]) -> tuple[PhysicsState, ...]:
+        """Every group stepped with fresh poses, the groups' Warp calls issued together."""
+        return self._step_rows(tuple(range(len(states))), states, True, scene_streams.concurrently)
+
+    def _step_rows(
+        self,
+        groups: tuple[int, ...],
+        states: tuple[PhysicsState, ...],
+        fresh_poses: bool,
+        issue: Callable[[list[Callable[[mjx.Data], mjx.Data]], list[mjx.Data]], list[mjx.Data]],
+    ) -> tuple[PhysicsState, ...]:
+        """`groups` stepped, one state each; `issue(fns, datas)` applies one function to each
+        group's data (in turn, or with their Warp calls together: `mwjax.scene_streams`)."""
 
         # A device loop rather than five traced calls: the loop body hands Warp the same buffers
         # at every substep, and Warp captures a graph (with its scratch) per call site and set of
         # buffer addresses, so a site needs one graph instead of one per substep; XLA also
         # compiles one body instead of five (docs/performance.md).
-        def substep(_: int, carry: tuple[mjx.Data, jax.Array]) -> tuple[mjx.Data, jax.Array]:
-            data, rows = carry
-            data = step(data)
-            return data, jnp.maximum(rows, data._impl.nefc)
+        def substep(_: int, carry: tuple[tuple[mjx.Data, ...], tuple[jax.Array, ...]]) -> Any:
+            datas, rows = carry
+            datas = tuple(issue([self._substep[g] for g in groups], list(datas)))
+            return datas, tuple(jnp.maximum(r, d._impl.nefc) for r, d in zip(rows, datas, strict=True))
 
         # MuJoCo C checks qpos and qvel before each step and qacc after its forward pass, and
         # resets a diverged state to the model's defaults (`mj_checkPos/Vel/Acc`, its automatic
@@ -399,16 +433,21 @@ class Physics:
         # substep where it happened (C then integrates the remaining substeps from the reset),
         # and never shows as a NaN (C's next `mj_step` would find it). Selects, not a `lax.cond`
         # per substep: a conditional costs the GPU a host round trip.
-        data = self.data(g, state)
-        bad_input = _diverged(data.qpos, data.qvel)
-        data = _reset_rows(self._defaults[g], data, bad_input)
-        data, rows = jax.lax.fori_loop(
-            0, self.config.substeps, substep, (data, jnp.zeros_like(state.rows_needed))
-        )
-        bad = _diverged(data.qpos, data.qvel, data.qacc)
-        data = _reset_rows(self._defaults[g], data, bad)
-        diverged = bad_input | bad
-        return _carried(self._kinematics[g](data) if fresh_poses else data, rows, diverged)
+        datas, bad_inputs = [], []
+        for g, state in zip(groups, states, strict=True):
+            data = self.data(g, state)
+            bad_inputs.append(_diverged(data.qpos, data.qvel))
+            datas.append(_reset_rows(self._defaults[g], data, bad_inputs[-1]))
+        rows = tuple(jnp.zeros_like(state.rows_needed) for state in states)
+        datas, rows = jax.lax.fori_loop(0, self.config.substeps, substep, (tuple(datas), rows))
+        reset, diverged = [], []
+        for g, data, bad_input in zip(groups, datas, bad_inputs, strict=True):
+            bad = _diverged(data.qpos, data.qvel, data.qacc)
+            reset.append(_reset_rows(self._defaults[g], data, bad))
+            diverged.append(bad_input | bad)
+        if fresh_poses:
+            reset = issue([self._kinematics[g] for g in groups], reset)
+        return tuple(_carried(*parts) for parts in zip(reset, rows, diverged, strict=True))
 
     def constraint_rows_needed(self, states: tuple[PhysicsState, ...]) -> jax.Array:
         """Per env (rows in batch order), the constraint rows the last `step` needed at its peak,
@@ -497,6 +536,10 @@ def convex_candidates(device_model: mjx.Model, box_box_collider: str) -> int:
         ),
         default=0,
     )
+
+
+def _in_turn(fns: list[Callable[[mjx.Data], mjx.Data]], datas: list[mjx.Data]) -> list[mjx.Data]:
+    return [fn(data) for fn, data in zip(fns, datas, strict=True)]
 
 
 def _step(model: mjx.Model, data: mjx.Data) -> mjx.Data:

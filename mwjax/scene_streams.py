@@ -1,0 +1,340 @@
+"""Runs the MJX-Warp calls of several scenes as one FFI call, each scene on its own CUDA stream.
+
+XLA runs a program's FFI calls one after another on one stream, and a scene's MJX-Warp step is a
+chain of small kernels that fills a GPU only at tens of thousands of worlds: with one call per
+scene, MT50's 36 scenes at 1,024 envs per task leave the GPU mostly idle (docs/performance.md).
+XLA's own ways to run calls side by side fail here: recording Warp's kernels into XLA's command
+buffers cannot take Warp's conditional graph nodes (the solver's loop), and stream annotations
+find no stream inside a loop body.
+
+`concurrently(fns, args)` traces each function (one scene's vmapped `mjx.step` or
+`mjx.kinematics`) to a jaxpr, then evaluates the jaxprs side by side in the caller's trace,
+inlining the calls that hold Warp calls (MJX-Warp's `custom_vmap`, jits), until each reaches a Warp
+call; those calls become one FFI call that takes all their operands and returns all their outputs,
+and the evaluation goes on to the next round of Warp calls or the end.
+
+At run time the callback, on a GPU, captures each scene's Warp call into a CUDA graph on that
+scene's own stream, as Warp's "warp" graph mode does on XLA's stream (keyed by the addresses of the
+call's buffers, up to `_GRAPHS_PER_SCENE` per call and scene), and replays the graphs side by
+side: every scene stream waits for XLA's stream, and XLA's stream waits for every scene stream
+before the call returns. On the CPU it runs the scenes' Warp calls one after another, as the
+separate calls would (a check of the plumbing; `PhysicsConfig.concurrent_scenes` says when each
+is used).
+"""
+
+from __future__ import annotations
+
+import collections
+import ctypes
+import dataclasses
+import hashlib
+import threading
+from collections.abc import Callable, Generator, Sequence
+from typing import Any
+
+import jax
+import jax.extend as jex
+import numpy as np
+import warp as wp
+from jax._src import ffi as jffi
+from warp._src.jax import ffi, xla_ffi
+
+_TARGET = "mwjax_scene_streams"
+# Graphs kept per call and scene (Warp's "warp" mode keeps 32 per callable).
+_GRAPHS_PER_SCENE = 32
+
+
+@dataclasses.dataclass
+class _Call:
+    """One Warp call of the trace: its callable and call id, operands and result types."""
+
+    callable: ffi.FfiCallable
+    call_id: int
+    operands: list[Any]
+    out_types: list[jax.ShapeDtypeStruct]
+    aliases: dict[int, int]
+
+
+@dataclasses.dataclass
+class _Site:
+    """One combined call: its Warp calls in order, each with its range of operands and outputs."""
+
+    calls: list[tuple[ffi.FfiCallable, int]]
+    inputs: list[tuple[int, int]]
+    outputs: list[tuple[int, int]]
+    graphs: list[collections.OrderedDict] = dataclasses.field(default_factory=list)
+
+
+_lock = threading.Lock()
+_sites: dict[int, _Site] = {}
+_callables: dict[str, ffi.FfiCallable] = {}
+_registered = False
+
+
+def concurrently(fns: Sequence[Callable[[Any], Any]], args: Sequence[Any]) -> list[Any]:
+    """`[fn(arg) for fn, arg in zip(fns, args)]`, with the Warp calls the functions make issued
+    together: each round of calls (every function's first, then every second, ...) as one FFI
+    call that runs them side by side (see the module's docstring). Warp calls inside loops or
+    conditionals of a function are not supported (an error says so)."""
+    _register_target()
+    runs, trees = [], []
+    for fn, arg in zip(fns, args, strict=True):
+        closed, shape = jax.make_jaxpr(fn, return_shape=True)(arg)
+        trees.append(jax.tree.structure(shape))
+        runs.append(_interpret(closed.jaxpr, closed.consts, jax.tree.leaves(arg)))
+    results: list[Any] = [None] * len(runs)
+    pending = {i: next_call(run, None, results, i) for i, run in enumerate(runs)}
+    while pending := {i: call for i, call in pending.items() if call is not None}:
+        order = sorted(pending)
+        outputs = _combined_call([pending[i] for i in order])
+        pending = {i: next_call(runs[i], out, results, i) for i, out in zip(order, outputs, strict=True)}
+    return [jax.tree.unflatten(tree, leaves) for tree, leaves in zip(trees, results, strict=True)]
+
+
+def next_call(run: Generator, sent: Any, results: list[Any], i: int) -> _Call | None:
+    """Runs `run` to its next Warp call (returned) or to its end (its result goes to `results`)."""
+    try:
+        return run.send(sent)
+    except StopIteration as end:
+        results[i] = end.value
+        return None
+
+
+def _interpret(jaxpr: jex.core.Jaxpr, consts: Sequence[Any], args: Sequence[Any]) -> Generator:
+    """Evaluates `jaxpr` in the current trace, inlining the calls that contain Warp calls, and
+    yields at each Warp call for its outputs."""
+    env: dict[Any, Any] = {}
+
+    def read(var: Any) -> Any:
+        return var.val if isinstance(var, jex.core.Literal) else env[var]
+
+    env.update(zip(jaxpr.constvars, consts, strict=True))
+    env.update(zip(jaxpr.invars, args, strict=True))
+    for eqn in jaxpr.eqns:
+        invals = [read(v) for v in eqn.invars]
+        inner = _inner_jaxpr(eqn)
+        if eqn.primitive is jffi.ffi_call_p and _warp_callable(eqn.params["target_name"]) is not None:
+            outvals = yield _warp_call(eqn, invals)
+        elif inner is not None:
+            outvals = yield from _interpret(inner.jaxpr, inner.consts, invals)
+        else:
+            bound = eqn.primitive.get_bind_params(eqn.params)
+            # JAX 0.10 returns the parameters; earlier versions (subfuns, parameters).
+            subfuns, params = bound if isinstance(bound, tuple) else ((), bound)
+            outvals = eqn.primitive.bind(*subfuns, *invals, **params)
+            outvals = outvals if eqn.primitive.multiple_results else [outvals]
+        env.update(
+            (v, x) for v, x in zip(eqn.outvars, outvals, strict=True) if not isinstance(v, jex.core.DropVar)
+        )
+    return [read(v) for v in jaxpr.outvars]
+
+
+# Calls a trace may inline: their parameter holding the called jaxpr.
+_CALLED = {"custom_vmap_call": "call", "pjit": "jaxpr", "jit": "jaxpr", "closed_call": "call_jaxpr"}
+
+
+def _inner_jaxpr(eqn: Any) -> jex.core.ClosedJaxpr | None:
+    """The jaxpr of a call to inline (it contains a Warp call), else None. A Warp call elsewhere
+    (a loop's or a conditional's body) cannot join the others: an error."""
+    holds = [v for v in eqn.params.values() if isinstance(v, jex.core.ClosedJaxpr | jex.core.Jaxpr)]
+    if not any(_has_warp_call(j.jaxpr if isinstance(j, jex.core.ClosedJaxpr) else j) for j in holds):
+        return None
+    called = eqn.params.get(_CALLED.get(eqn.primitive.name, ""))
+    if not isinstance(called, jex.core.ClosedJaxpr):
+        raise NotImplementedError(f"mwjax.scene_streams: a Warp call inside {eqn.primitive.name}")
+    return called
+
+
+def _has_warp_call(jaxpr: jex.core.Jaxpr) -> bool:
+    for eqn in jaxpr.eqns:
+        if eqn.primitive is jffi.ffi_call_p and _warp_callable(eqn.params["target_name"]) is not None:
+            return True
+        for value in eqn.params.values():
+            if isinstance(value, jex.core.ClosedJaxpr) and _has_warp_call(value.jaxpr):
+                return True
+            if isinstance(value, jex.core.Jaxpr) and _has_warp_call(value):
+                return True
+    return False
+
+
+def _warp_callable(name: str) -> ffi.FfiCallable | None:
+    if name not in _callables:
+        _callables.update({c.name: c for c in list(ffi._FFI_CALLABLE_REGISTRY.values())})
+    return _callables.get(name)
+
+
+def _warp_call(eqn: Any, operands: list[Any]) -> _Call:
+    params = eqn.params
+    call_id = dict(params["attributes"])["call_id"]
+    out_types = [jax.ShapeDtypeStruct(a.shape, a.dtype) for a in params["result_avals"]]
+    aliases = dict(params["input_output_aliases"])
+    return _Call(_warp_callable(params["target_name"]), int(call_id), operands, out_types, aliases)
+
+
+def _combined_call(calls: list[_Call]) -> list[list[Any]]:
+    operands: list[Any] = []
+    out_types: list[jax.ShapeDtypeStruct] = []
+    aliases: dict[int, int] = {}
+    inputs, outputs = [], []
+    for call in calls:
+        aliases.update({len(operands) + i: len(out_types) + o for i, o in call.aliases.items()})
+        inputs.append((len(operands), len(operands) + len(call.operands)))
+        outputs.append((len(out_types), len(out_types) + len(call.out_types)))
+        operands.extend(call.operands)
+        out_types.extend(call.out_types)
+    # The site's id names its Warp calls, whose own ids are stable across processes
+    # (`mwjax.warp_call_ids`), so that the program stays in JAX's persistent cache.
+    described = repr([(call.callable.name, call.call_id) for call in calls])
+    site = int.from_bytes(hashlib.blake2b(described.encode(), digest_size=8).digest(), "little") >> 1
+    with _lock:
+        if site not in _sites:
+            described_calls = [(call.callable, call.call_id) for call in calls]
+            _sites[site] = _Site(described_calls, inputs, outputs, [collections.OrderedDict() for _ in calls])
+    flat = jax.ffi.ffi_call(_TARGET, out_types, input_output_aliases=aliases, has_side_effect=False)(
+        *operands, site=np.int64(site)
+    )
+    return [list(flat[a:b]) for a, b in outputs]
+
+
+# The FFI callback, registered for both platforms. Kept referenced: XLA holds a raw pointer.
+_callbacks: list[Any] = []
+
+
+def _register_target() -> None:
+    global _registered
+    with _lock:
+        if _registered:
+            return
+        _registered = True
+    c_callback = ctypes.CFUNCTYPE(ctypes.c_void_p, ctypes.POINTER(xla_ffi.XLA_FFI_CallFrame))
+    for platform, is_gpu in (("cpu", False), ("CUDA", True)):
+
+        def callback(call_frame: Any, is_gpu: bool = is_gpu) -> Any:
+            return _callback(call_frame, is_gpu)
+
+        handle = c_callback(callback)
+        _callbacks.append(handle)
+        capsule = jax.ffi.pycapsule(ctypes.cast(handle, ctypes.c_void_p).value)
+        jax.ffi.register_ffi_target(_TARGET, capsule, platform=platform)
+
+
+def _callback(call_frame: Any, is_gpu: bool) -> Any:
+    try:
+        frame = call_frame.contents
+        extension = frame.extension_start
+        if extension and extension.contents.type == xla_ffi.XLA_FFI_Extension_Type.Metadata:
+            # XLA's first call asks for the API version; not command-buffer compatible.
+            metadata = ctypes.cast(extension, ctypes.POINTER(xla_ffi.XLA_FFI_Metadata_Extension))
+            metadata.contents.metadata.contents.api_version.major_version = 0
+            metadata.contents.metadata.contents.api_version.minor_version = 1
+            return None
+        attr = ctypes.cast(frame.attrs.attrs[0], ctypes.POINTER(xla_ffi.XLA_FFI_Scalar)).contents
+        site = _sites[ctypes.cast(attr.value, ctypes.POINTER(ctypes.c_int64)).contents.value]
+        inputs = ctypes.cast(frame.args.args, ctypes.c_void_p).value
+        outputs = ctypes.cast(frame.rets.rets, ctypes.c_void_p).value
+        with ffi._FFI_CALLBACK_LOCK:
+            if is_gpu:
+                _run_on_streams(site, frame, inputs, outputs)
+            else:
+                _run_in_order(site, inputs, outputs)
+    except Exception as error:  # noqa: BLE001 - reported to XLA, which raises it in Python
+        return xla_ffi.create_ffi_error(
+            call_frame.contents.api,
+            xla_ffi.XLA_FFI_Error_Code.UNKNOWN,
+            f"mwjax.scene_streams: {type(error).__name__}: {error}",
+        )
+    return None
+
+
+_BUFFER_PTR = ctypes.POINTER(xla_ffi.XLA_FFI_Buffer)
+
+
+def _buffers(base: int, start: int, stop: int) -> Any:
+    """The FFI buffer pointers [start, stop) of the array at address `base`."""
+    return (_BUFFER_PTR * (stop - start)).from_address(base + start * ctypes.sizeof(ctypes.c_void_p))
+
+
+def _arguments(call: tuple[ffi.FfiCallable, int], inputs: Any, outputs: Any, device: wp.Device) -> list[Any]:
+    callable_, call_id = call
+    return callable_._build_arg_list(inputs, outputs, callable_.call_descriptors[call_id], device)
+
+
+def _run_in_order(site: _Site, inputs: int, outputs: int) -> None:
+    device = wp.get_device("cpu")
+    for call, (i0, i1), (o0, o1) in zip(site.calls, site.inputs, site.outputs, strict=True):
+        args = _arguments(call, _buffers(inputs, i0, i1), _buffers(outputs, o0, o1), device)
+        with wp.ScopedDevice(device):
+            call[0].func(*args)
+
+
+_DATA_OFFSET = xla_ffi.XLA_FFI_Buffer.data.offset
+_BUFFER_SIZE = ctypes.sizeof(xla_ffi.XLA_FFI_Buffer)
+
+
+def _data_pointers(base: int, count: int) -> np.ndarray:
+    """The device addresses of the `count` FFI buffers whose pointers start at `base`."""
+    if count == 0:
+        return np.zeros(0, np.uint64)
+    structs = np.ctypeslib.as_array((ctypes.c_uint64 * count).from_address(base)).copy()
+    if np.all(np.diff(structs.astype(np.int64)) == _BUFFER_SIZE):
+        # XLA lays a call's buffer descriptors out as one array: read their `data` at once.
+        words = _BUFFER_SIZE // 8
+        block = np.ctypeslib.as_array((ctypes.c_uint64 * (count * words)).from_address(int(structs[0])))
+        return block.reshape(count, words)[:, _DATA_OFFSET // 8].copy()
+    return np.array([ctypes.c_uint64.from_address(int(s) + _DATA_OFFSET).value for s in structs], np.uint64)
+
+
+class _Streams:
+    """Per device: a stream and an event for each scene, and the event XLA's stream records."""
+
+    def __init__(self, device: wp.Device) -> None:
+        self.device = device
+        self.streams: list[wp.Stream] = []
+        self.done: list[wp.Event] = []
+        self.start = wp.Event(device)
+
+    def get(self, count: int) -> list[wp.Stream]:
+        while len(self.streams) < count:
+            self.streams.append(wp.Stream(self.device))
+            self.done.append(wp.Event(self.device))
+        return self.streams
+
+
+_streams: dict[int, _Streams] = {}
+
+
+def _run_on_streams(site: _Site, frame: Any, inputs: int, outputs: int) -> None:
+    core = wp._src.context.runtime.core
+    xla_stream = xla_ffi.get_stream_from_callframe(frame)
+    ordinal = xla_ffi.get_device_ordinal_from_callframe(frame)
+    device = wp.get_cuda_device(ordinal)
+    if ordinal not in _streams:
+        _streams[ordinal] = _Streams(device)
+    own = _streams[ordinal]
+    streams = own.get(len(site.calls))
+    in_ptrs = _data_pointers(inputs, site.inputs[-1][1])
+    out_ptrs = _data_pointers(outputs, site.outputs[-1][1])
+    core.wp_cuda_event_record(own.start.cuda_event, xla_stream, False)
+    for k, (call, (i0, i1), (o0, o1)) in enumerate(zip(site.calls, site.inputs, site.outputs, strict=True)):
+        stream = streams[k]
+        key = (ordinal, in_ptrs[i0:i1].tobytes(), out_ptrs[o0:o1].tobytes())
+        graphs = site.graphs[k]
+        capture = graphs.get(key)
+        core.wp_cuda_stream_wait_event(stream.cuda_stream, own.start.cuda_event, False)
+        if capture is None:
+            args = _arguments(call, _buffers(inputs, i0, i1), _buffers(outputs, o0, o1), device)
+            ffi._load_ffi_module(wp.get_module(call[0].func.__module__), device)
+            with wp.ScopedDevice(device), wp.ScopedStream(stream, sync_enter=False):
+                with wp.ScopedCapture(stream=stream) as capture:
+                    call[0].func(*args)
+            wp.capture_launch(capture.graph, stream=stream)
+            graphs[key] = capture
+            if len(graphs) > _GRAPHS_PER_SCENE:
+                graphs.popitem(last=False)
+        else:
+            graphs.move_to_end(key)
+            if not core.wp_cuda_graph_launch(capture.graph.graph_exec, stream.cuda_stream):
+                raise RuntimeError(f"graph launch failed: {wp._src.context.runtime.get_error_string()}")
+        core.wp_cuda_event_record(own.done[k].cuda_event, stream.cuda_stream, False)
+    for k in range(len(site.calls)):
+        core.wp_cuda_stream_wait_event(xla_stream, own.done[k].cuda_event, False)

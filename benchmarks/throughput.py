@@ -165,6 +165,7 @@ def measure(
         "env_steps_per_s": None if refused else env.num_envs * steps / min(times),
         "refused": "; ".join(refused) or None,
         "overflow_envs": overflow_envs,
+        "concurrent_scenes": env.physics.concurrent,  # what the env chose, on this device
         "rollout_s": times,
         "kernel_build_s": kernel_build_s,  # Warp's modules, in parallel processes (GPU only)
         "build_s": build_s,
@@ -305,6 +306,12 @@ def main() -> None:
     parser.add_argument("--constraints", type=rows_arg, default=None, help="constraints_per_env")
     parser.add_argument("--ccd-pairs", type=rows_arg, default=None, help="ccd_pairs_per_env")
     parser.add_argument("--graph-mode", default=None, help="PhysicsConfig.graph_mode")
+    parser.add_argument(
+        "--concurrent-scenes",
+        choices=["on", "off"],
+        default=None,
+        help="PhysicsConfig.concurrent_scenes (default: its own choice)",
+    )
     parser.add_argument("--vs-reference", metavar="PYTHON", default=None, help="also time metaworld 3.1.1")
     parser.add_argument("--reference-steps", type=int, default=EPISODE)
     parser.add_argument("--adapter", action="store_true", help="also time the Gymnasium adapter")
@@ -328,6 +335,7 @@ def main() -> None:
         "constraints_per_env": args.constraints,
         "ccd_pairs_per_env": args.ccd_pairs,
         "graph_mode": args.graph_mode,
+        "concurrent_scenes": {"on": True, "off": False, None: None}[args.concurrent_scenes],
     }
     physics = mwjax.PhysicsConfig(**{k: v for k, v in settings.items() if v is not None})
 

@@ -1,0 +1,102 @@
+"""Does an env step with its scenes on separate streams (`PhysicsConfig.concurrent_scenes`) follow
+the same physics as with one call per scene?
+
+Runs one seeded random-action rollout three times in this process: scenes in turn, in turn again,
+then together. On the CPU all three must agree bit for bit. On a GPU, Warp's atomics make even two
+runs in turn differ in the last bits, and a rollout amplifies that; the together run must stay as
+close to the first as the second in-turn run does. Prints per-step maximum observation
+differences and a JSON row (`--out`).
+
+    XLA_PYTHON_CLIENT_MEM_FRACTION=0.45 python tools/scene_streams_check.py --set MT50 \\
+        --envs-per-task 64 --steps 200
+    JAX_PLATFORMS=cpu python tools/scene_streams_check.py --set reach-v3,door-lock-v3 \\
+        --envs-per-task 2 --steps 5
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+import jax
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).parents[1]))
+import mwjax  # noqa: E402
+from benchmarks.common import provenance, set_arg, tasks_arg  # noqa: E402
+
+
+def rollout(tasks: object, envs_per_task: int, steps: int, concurrent: bool) -> tuple[np.ndarray, dict]:
+    env = mwjax.make(
+        tasks,
+        envs_per_task=envs_per_task,
+        seed=0,
+        physics=mwjax.PhysicsConfig(concurrent_scenes=concurrent),
+        max_episode_steps=max(2, steps // 2),  # every env autoresets inside the rollout
+    )
+
+    def body(state: mwjax.State, key: jax.Array) -> tuple[mwjax.State, tuple[jax.Array, ...]]:
+        action = jax.random.uniform(key, (env.num_envs, 4), minval=-1.0, maxval=1.0)
+        state = env.step(state, action)
+        return state, (state.obs, state.reward, state.info["physics_overflow"])
+
+    run = jax.jit(lambda s, k: jax.lax.scan(body, s, jax.random.split(k, steps)))
+    state = jax.jit(env.reset)(jax.random.key(0))
+    t0 = time.perf_counter()
+    compiled = run.lower(state, jax.random.key(1)).compile()
+    compile_s = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    _, (obs, reward, overflow) = jax.block_until_ready(compiled(state, jax.random.key(1)))
+    first_s = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    jax.block_until_ready(compiled(state, jax.random.key(1)))
+    again_s = time.perf_counter() - t0
+    timing = {"compile_s": compile_s, "first_run_s": first_s, "second_run_s": again_s}
+    timing["concurrent"] = env.physics.concurrent
+    timing["overflow_envs"] = int((np.asarray(overflow) != 0).any(axis=0).sum())
+    return np.concatenate([np.asarray(obs), np.asarray(reward)[..., None]], axis=-1), timing
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--set", type=set_arg, default="MT10", help="a set, or tasks joined by commas")
+    parser.add_argument("--envs-per-task", type=int, default=16)
+    parser.add_argument("--steps", type=int, default=100)
+    parser.add_argument("--out", default=None, help="JSON path")
+    args = parser.parse_args()
+    tasks = tasks_arg(args.set)
+    first, t_first = rollout(tasks, args.envs_per_task, args.steps, False)
+    second, t_second = rollout(tasks, args.envs_per_task, args.steps, False)
+    together, t_together = rollout(tasks, args.envs_per_task, args.steps, True)
+
+    def per_step(other: np.ndarray) -> list[float]:
+        return np.abs(other - first).reshape(args.steps, -1).max(axis=1).tolist()
+
+    row = {
+        "set": args.set,
+        "envs_per_task": args.envs_per_task,
+        "steps": args.steps,
+        "in_turn_again_max_diff": per_step(second),
+        "together_max_diff": per_step(together),
+        "in_turn_again_identical": bool(np.array_equal(first, second)),
+        "together_identical": bool(np.array_equal(first, together)),
+        "timing": {"in_turn": t_first, "in_turn_again": t_second, "together": t_together},
+        **provenance(),
+    }
+    for step in sorted({0, 1, 4, 9, args.steps // 2, args.steps - 1} & set(range(args.steps))):
+        print(
+            f"step {step + 1:>4}: max |diff| in turn again {row['in_turn_again_max_diff'][step]:.3g}, "
+            f"together {row['together_max_diff'][step]:.3g}",
+            flush=True,
+        )
+    print(json.dumps({k: v for k, v in row.items() if not k.endswith("max_diff")}), flush=True)
+    if args.out:
+        Path(args.out).parent.mkdir(parents=True, exist_ok=True)
+        Path(args.out).write_text(json.dumps(row, indent=1) + "\n")
+
+
+if __name__ == "__main__":
+    main()

@@ -25,11 +25,6 @@ if os.environ.get("MWJAX_DETERMINISTIC") == "1":
 
     determinism.enable()
 
-# CUDA maps a context's streams onto 8 hardware queues unless told otherwise, and work on streams
-# that share a queue runs in turn: `mwjax.scene_streams` runs each scene on its own stream. Read
-# once, when the CUDA context is made; a process that made one before importing mwjax keeps 8.
-os.environ.setdefault("CUDA_DEVICE_MAX_CONNECTIONS", "32")
-
 register_envs()
 
 __all__ = ["Env", "EnvConfig", "PhysicsConfig", "State", "make"]

@@ -165,7 +165,6 @@ def measure(
         "env_steps_per_s": None if refused else env.num_envs * steps / min(times),
         "refused": "; ".join(refused) or None,
         "overflow_envs": overflow_envs,
-        "concurrent_scenes": env.physics.concurrent,  # what the env chose, on this device
         "rollout_s": times,
         "kernel_build_s": kernel_build_s,  # Warp's modules, in parallel processes (GPU only)
         "build_s": build_s,
@@ -310,7 +309,7 @@ def main() -> None:
         "--concurrent-scenes",
         choices=["on", "off"],
         default=None,
-        help="PhysicsConfig.concurrent_scenes (default: its own choice)",
+        help="PhysicsConfig.concurrent_scenes (default: off)",
     )
     parser.add_argument("--vs-reference", metavar="PYTHON", default=None, help="also time metaworld 3.1.1")
     parser.add_argument("--reference-steps", type=int, default=EPISODE)

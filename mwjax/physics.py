@@ -167,12 +167,10 @@ class PhysicsConfig:
     # "box_box": Warp's port of MuJoCo C's `mjc_BoxBox` (C's collider, see `warp_model`);
     # "convex": Warp's general convex collider (GJK/EPA), MJX-Warp's own default.
     box_box_collider: str = "box_box"
-    # Whether an env step runs its scenes' Warp calls as one FFI call, each scene on its own CUDA
-    # stream (`mwjax.scene_streams`): None is on for two scenes or more on a GPU in the default
-    # graph mode ("warp") outside `mwjax.determinism`, off otherwise. True on the CPU runs the same
-    # single call, the scenes one after another (a check of the plumbing; slower than Warp's
-    # replayed calls there).
-    concurrent_scenes: bool | None = None
+    # Whether an env step runs its scenes' Warp calls as one FFI call, each scene's CUDA graph on
+    # its own stream (`mwjax.scene_streams`; on the CPU the scenes in turn inside that call).
+    # Off by default: on an H200 it was not yet faster than one call per scene (docs/performance.md).
+    concurrent_scenes: bool = False
 
     def __post_init__(self) -> None:
         for name in ("substeps", "contacts_per_env", "iterations", "ls_iterations"):
@@ -193,8 +191,8 @@ class PhysicsConfig:
                 f"{self.contacts_per_env}], not {pairs!r}"
             )
         _graph_mode(self.graph_mode)
-        if self.concurrent_scenes not in (None, True, False):
-            raise ValueError(f"concurrent_scenes must be None, True or False, not {self.concurrent_scenes!r}")
+        if not isinstance(self.concurrent_scenes, bool):
+            raise ValueError(f"concurrent_scenes must be True or False, not {self.concurrent_scenes!r}")
 
 
 def _is_int(value: object) -> bool:
@@ -283,9 +281,8 @@ class Physics:
                 f"graph_mode={config.graph_mode!r} captures CUDA graphs and needs a GPU; on the CPU "
                 f"Warp runs {' or '.join(map(repr, _CPU_GRAPH_MODES))} (or None, MJX's choice)"
             )
-        on_gpu = local_device().platform == "gpu"
         own_graphs = config.graph_mode in (None, "warp") and not determinism.enabled()
-        if config.concurrent_scenes and on_gpu and not own_graphs:
+        if config.concurrent_scenes and local_device().platform == "gpu" and not own_graphs:
             raise ValueError(
                 "concurrent_scenes=True captures each scene's CUDA graphs itself, as graph_mode='warp' "
                 f"does; it cannot run with graph_mode={config.graph_mode!r} or under mwjax.determinism"
@@ -325,11 +322,6 @@ class Physics:
         # of MT50's ~100 call sites it dominated the step's lowering. Jitted, it is traced once
         # per scene (it makes no Warp call, so sharing its trace shares no captured graph).
         self._made: dict[tuple[int, int], Callable[[], mjx.Data]] = {}
-        self.concurrent = (
-            config.concurrent_scenes
-            if config.concurrent_scenes is not None
-            else on_gpu and own_graphs and len(groups) > 1
-        )
 
     def make_data(self) -> tuple[PhysicsState, ...]:
         """Fresh batched states (the scene's qpos0, poses not yet computed), one per group."""
@@ -388,7 +380,7 @@ class Physics:
         overflow flags of the result are those this step raised; a buffer that dropped something
         in a scene for the first time raises a `PhysicsOverflowWarning` on the host."""
         cleared = tuple(state.replace(overflow=jnp.zeros_like(state.overflow)) for state in states)
-        if self.concurrent:
+        if self.config.concurrent_scenes:
             stepped = merge_rows(self._step_all)(cleared)
         else:
             stepped = tuple(self.step_group(g, state) for g, state in enumerate(cleared))

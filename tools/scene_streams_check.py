@@ -55,7 +55,7 @@ def rollout(tasks: object, envs_per_task: int, steps: int, concurrent: bool) -> 
     jax.block_until_ready(compiled(state, jax.random.key(1)))
     again_s = time.perf_counter() - t0
     timing = {"compile_s": compile_s, "first_run_s": first_s, "second_run_s": again_s}
-    timing["concurrent"] = env.physics.concurrent
+    timing["concurrent"] = env.physics.config.concurrent_scenes
     timing["overflow_envs"] = int((np.asarray(overflow) != 0).any(axis=0).sum())
     return np.concatenate([np.asarray(obs), np.asarray(reward)[..., None]], axis=-1), timing
 

@@ -1,0 +1,77 @@
+"""`PhysicsConfig(concurrent_scenes=True)`: an env step's scenes as one FFI call
+(`mwjax.scene_streams`). On the CPU the call runs the scenes in turn, so a rollout must equal the
+one with a call per scene bit for bit; the GPU's side-by-side streams are checked by
+`tools/scene_streams_check.py` (results in benchmarks/results/profile/)."""
+
+from __future__ import annotations
+
+import ctypes
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import mwjax
+from mwjax import scene_streams
+
+TASKS = ["pick-place-v3", "reach-v3"]
+
+
+@pytest.mark.skipif(jax.default_backend() != "cpu", reason="bit-for-bit equality holds on the CPU")
+def test_together_steps_equal_separate_calls_through_an_autoreset():
+    actions = jax.random.uniform(jax.random.key(1), (4, 2 * 2, 4), minval=-1, maxval=1)
+
+    def rollout(together: bool) -> list[np.ndarray]:
+        physics = mwjax.PhysicsConfig(concurrent_scenes=together)
+        env = mwjax.make(TASKS, envs_per_task=2, seed=4, physics=physics, max_episode_steps=2)
+        state, step = jax.jit(env.reset)(jax.random.key(0)), jax.jit(env.step)
+        out = []
+        for action in actions:  # the episodes end at the second step and restart
+            state = step(state, action)
+            out += [np.asarray(x) for x in (state.obs, state.reward, state.info["physics_overflow"])]
+            out += [np.asarray(x) for x in jax.tree.leaves(state.physics)]
+        return out
+
+    for ours, theirs in zip(rollout(True), rollout(False), strict=True):
+        np.testing.assert_array_equal(ours, theirs)
+
+
+def test_functions_without_warp_calls_run_as_they_are():
+    fns = [lambda x: x * 2, lambda x: {"y": jnp.sin(x)}]
+    args = [jnp.arange(3.0), jnp.ones(2)]
+    out = jax.jit(lambda a, b: scene_streams.concurrently(fns, [a, b]))(*args)
+    np.testing.assert_array_equal(out[0], np.arange(3.0) * 2)
+    np.testing.assert_allclose(out[1]["y"], np.sin(np.ones(2)))
+
+
+def test_a_warp_call_inside_a_loop_is_refused():
+    env = mwjax.make(["reach-v3"], envs_per_task=1, seed=0)
+    physics = env.physics
+    data = physics.data(0, physics.make_data()[0])
+    looped = lambda d: jax.lax.fori_loop(0, 2, lambda _, x: physics._substep[0](x), d)  # noqa: E731
+    with pytest.raises(NotImplementedError, match="a Warp call inside"):
+        jax.eval_shape(lambda d: scene_streams.concurrently([looped], [d]), data)
+
+
+@pytest.mark.parametrize("value", ["yes", None, 1])
+def test_concurrent_scenes_takes_a_bool(value: object):
+    with pytest.raises(ValueError, match="concurrent_scenes"):
+        mwjax.PhysicsConfig(concurrent_scenes=value)
+
+
+@pytest.mark.parametrize("stride_words", [6, 11, None])
+def test_buffer_addresses_read_at_a_stride_or_one_by_one(stride_words: int | None):
+    """XLA's buffer descriptors lie at one stride (read as a block) or anywhere (read one by one)."""
+    count = 5
+    words = (stride_words or 11) * count
+    memory = (ctypes.c_uint64 * words)()
+    stride = (stride_words or 11) * 8
+    order = [0, 3, 1, 4, 2] if stride_words is None else range(count)  # uneven gaps
+    structs = [ctypes.addressof(memory) + i * stride for i in order]
+    data = [1000 + 8 * k for k in range(count)]
+    for address, value in zip(structs, data, strict=True):
+        ctypes.c_uint64.from_address(address + scene_streams._DATA_OFFSET).value = value
+    pointers = (ctypes.c_uint64 * count)(*structs)
+    found = scene_streams._data_pointers(ctypes.addressof(pointers), count)
+    np.testing.assert_array_equal(found, data)

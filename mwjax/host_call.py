@@ -38,16 +38,34 @@ _registered: dict[str, list[object]] = {}
 
 def register(name: str, func: Handler) -> None:
     """Make `func` the FFI target `name` on the CPU and on CUDA (idempotent per name)."""
+    register_target(name, lambda platform: functools.partial(_handle, func, name, platform))
+
+
+def register_target(name: str, handler_for: Callable[[str], Callable[[object], int | None]]) -> None:
+    """Make `handler_for(platform)`, which takes XLA's call frame, the FFI target `name` on the
+    CPU ("cpu") and on CUDA ("CUDA") (idempotent per name)."""
     with _lock:
         if name in _registered:
             return
         handlers = []
         for platform in _PLATFORMS:
-            handler = _HANDLER_TYPE(functools.partial(_handle, func, name, platform))
+            handler = _HANDLER_TYPE(handler_for(platform))
             capsule = jax.ffi.pycapsule(ctypes.cast(handler, ctypes.c_void_p).value)
             jax.ffi.register_ffi_target(name, capsule, platform=platform)
             handlers.append(handler)
         _registered[name] = handlers
+
+
+def version_query(frame: xla_ffi.XLA_FFI_CallFrame) -> bool:
+    """Whether the call is XLA's first, which asks for the API version the handler speaks (then
+    answered: not command-buffer compatible)."""
+    extension = frame.extension_start
+    if not (extension and extension.contents.type == xla_ffi.XLA_FFI_Extension_Type.Metadata):
+        return False
+    metadata = ctypes.cast(extension, ctypes.POINTER(xla_ffi.XLA_FFI_Metadata_Extension))
+    metadata.contents.metadata.contents.api_version.major_version = 0
+    metadata.contents.metadata.contents.api_version.minor_version = 1
+    return True
 
 
 def call(name: str, x: jax.Array, **attrs: str) -> None:
@@ -57,12 +75,7 @@ def call(name: str, x: jax.Array, **attrs: str) -> None:
 
 def _handle(func: Handler, name: str, platform: str, call_frame: object) -> int | None:
     frame = call_frame.contents
-    extension = frame.extension_start
-    if extension and extension.contents.type == xla_ffi.XLA_FFI_Extension_Type.Metadata:
-        # XLA's first call asks for the API version the handler speaks.
-        metadata = ctypes.cast(extension, ctypes.POINTER(xla_ffi.XLA_FFI_Metadata_Extension))
-        metadata.contents.metadata.contents.api_version.major_version = 0
-        metadata.contents.metadata.contents.api_version.minor_version = 1
+    if version_query(frame):
         return None
     try:
         args = ctypes.cast(frame.args.args, ctypes.POINTER(ctypes.POINTER(xla_ffi.XLA_FFI_Buffer)))

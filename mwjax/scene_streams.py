@@ -27,6 +27,7 @@ from __future__ import annotations
 import collections
 import ctypes
 import dataclasses
+import functools
 import hashlib
 import threading
 from collections.abc import Callable, Generator, Sequence
@@ -38,6 +39,8 @@ import numpy as np
 import warp as wp
 from jax._src import ffi as jffi
 from warp._src.jax import ffi, xla_ffi
+
+from mwjax import host_call
 
 _TARGET = "mwjax_scene_streams"
 # Graphs kept per call and scene (Warp's "warp" mode keeps 32 per callable).
@@ -68,7 +71,6 @@ class _Site:
 _lock = threading.Lock()
 _sites: dict[int, _Site] = {}
 _callables: dict[str, ffi.FfiCallable] = {}
-_registered = False
 
 
 def concurrently(fns: Sequence[Callable[[Any], Any]], args: Sequence[Any]) -> list[Any]:
@@ -196,37 +198,17 @@ def _combined_call(calls: list[_Call]) -> list[list[Any]]:
     return [list(flat[a:b]) for a, b in outputs]
 
 
-# The FFI callback, registered for both platforms. Kept referenced: XLA holds a raw pointer.
-_callbacks: list[Any] = []
-
-
 def _register_target() -> None:
-    global _registered
-    with _lock:
-        if _registered:
-            return
-        _registered = True
-    c_callback = ctypes.CFUNCTYPE(ctypes.c_void_p, ctypes.POINTER(xla_ffi.XLA_FFI_CallFrame))
-    for platform, is_gpu in (("cpu", False), ("CUDA", True)):
+    def handler_for(platform: str) -> Callable[[Any], Any]:
+        return functools.partial(_callback, is_gpu=platform != "cpu")
 
-        def callback(call_frame: Any, is_gpu: bool = is_gpu) -> Any:
-            return _callback(call_frame, is_gpu)
-
-        handle = c_callback(callback)
-        _callbacks.append(handle)
-        capsule = jax.ffi.pycapsule(ctypes.cast(handle, ctypes.c_void_p).value)
-        jax.ffi.register_ffi_target(_TARGET, capsule, platform=platform)
+    host_call.register_target(_TARGET, handler_for)
 
 
 def _callback(call_frame: Any, is_gpu: bool) -> Any:
     try:
         frame = call_frame.contents
-        extension = frame.extension_start
-        if extension and extension.contents.type == xla_ffi.XLA_FFI_Extension_Type.Metadata:
-            # XLA's first call asks for the API version; not command-buffer compatible.
-            metadata = ctypes.cast(extension, ctypes.POINTER(xla_ffi.XLA_FFI_Metadata_Extension))
-            metadata.contents.metadata.contents.api_version.major_version = 0
-            metadata.contents.metadata.contents.api_version.minor_version = 1
+        if host_call.version_query(frame):
             return None
         attr = ctypes.cast(frame.attrs.attrs[0], ctypes.POINTER(xla_ffi.XLA_FFI_Scalar)).contents
         site = _sites[ctypes.cast(attr.value, ctypes.POINTER(ctypes.c_int64)).contents.value]

@@ -4,7 +4,9 @@ calls in turn, then together (`mwjax.scene_streams`) on one stream each, togethe
 stream (no overlap possible: what the streams alone cost or save), and together on streams made
 non-blocking (Warp's own streams block on CUDA's legacy default stream), and together with the
 scenes' graphs not launched at all (`no_physics`: the state stands still; what the rest of the step
-costs).
+costs). After the timed rollouts, one more rollout records a CUDA event before and after every graph
+launch: the graphs' summed GPU time and the time at least one ran (their union) per env step,
+against the step's wall time, say whether the GPU idles (host-bound) and whether graphs overlap.
 
     XLA_PYTHON_CLIENT_MEM_FRACTION=0.45 python tools/scene_streams_probe.py --set MT10 --envs-per-task 64
 """
@@ -13,6 +15,7 @@ from __future__ import annotations
 
 import argparse
 import ctypes
+import functools
 import json
 import sys
 import time
@@ -51,7 +54,56 @@ def no_physics(*_: object) -> None:
     """Stands in for `scene_streams._run_on_streams`: launches nothing (outputs alias inputs)."""
 
 
-def time_variant(tasks: object, envs_per_task: int, steps: int, repeats: int, concurrent: bool) -> dict:
+class GraphTimeline:
+    """Times every CUDA graph launch (Warp's own and `mwjax.scene_streams`') while `active`."""
+
+    def __init__(self) -> None:
+        self.active = False
+        self.pairs: list[tuple[wp.Event, wp.Event]] = []
+        wp.init()
+        if not wp.is_cuda_available():
+            return  # the CPU launches no CUDA graphs
+        core = wp._src.context.runtime.core
+        launch = core.wp_cuda_graph_launch
+
+        def timed(graph_exec: object, stream: object) -> bool:
+            if not self.active:
+                return launch(graph_exec, stream)
+            device = wp.get_cuda_device(0)
+            start, end = wp.Event(device, enable_timing=True), wp.Event(device, enable_timing=True)
+            core.wp_cuda_event_record(start.cuda_event, stream, True)
+            ok = launch(graph_exec, stream)
+            core.wp_cuda_event_record(end.cuda_event, stream, True)
+            self.pairs.append((start, end))
+            return ok
+
+        core.wp_cuda_graph_launch = timed
+
+    def summary(self, steps: int) -> dict:
+        """Per env step: the graphs' summed time and their union (ms), and the launches."""
+        if not self.pairs:
+            return {"graph_launches": 0}
+        origin = self.pairs[0][0]
+        since = functools.partial(wp.get_event_elapsed_time, origin)
+        spans = sorted((since(a), since(b)) for a, b in self.pairs)
+        union, (low, high) = 0.0, spans[0]
+        for a, b in spans[1:]:
+            if a > high:
+                union, low, high = union + high - low, a, b
+            else:
+                high = max(high, b)
+        union += high - low
+        self.pairs.clear()
+        return {
+            "graph_launches": len(spans),
+            "graphs_sum_ms_per_step": sum(b - a for a, b in spans) / steps,
+            "graphs_union_ms_per_step": union / steps,
+        }
+
+
+def time_variant(
+    tasks: object, envs_per_task: int, steps: int, repeats: int, concurrent: bool, timeline: GraphTimeline
+) -> dict:
     env = mwjax.make(
         tasks, envs_per_task=envs_per_task, seed=0, physics=mwjax.PhysicsConfig(concurrent_scenes=concurrent)
     )
@@ -69,7 +121,11 @@ def time_variant(tasks: object, envs_per_task: int, steps: int, repeats: int, co
         t0 = time.perf_counter()
         state = jax.block_until_ready(compiled(state, jax.random.key(2 + i)))
         times.append(time.perf_counter() - t0)
-    return {"ms_per_step": 1000 * min(times) / steps, "env_steps_per_s": env.num_envs * steps / min(times)}
+    timeline.active = True
+    state = jax.block_until_ready(compiled(state, jax.random.key(2 + repeats)))
+    timeline.active = False
+    row = {"ms_per_step": 1000 * min(times) / steps, "env_steps_per_s": env.num_envs * steps / min(times)}
+    return row | timeline.summary(steps)
 
 
 def main() -> None:
@@ -87,13 +143,14 @@ def main() -> None:
     default_get = scene_streams._Streams.get
     default_run = scene_streams._run_on_streams
     rows = {}
+    timeline = GraphTimeline()
     for variant in args.variants:
         scene_streams._streams.clear()
         getter = {"one_stream": one_stream, "nonblocking": nonblocking_streams}.get(variant, default_get)
         scene_streams._Streams.get = getter
         scene_streams._run_on_streams = no_physics if variant == "no_physics" else default_run
         together = variant != "in_turn"
-        rows[variant] = time_variant(tasks, args.envs_per_task, args.steps, args.repeats, together)
+        rows[variant] = time_variant(tasks, args.envs_per_task, args.steps, args.repeats, together, timeline)
         print(variant, json.dumps(rows[variant]), flush=True)
     row = {"set": args.set, "envs_per_task": args.envs_per_task, "steps": args.steps, "variants": rows}
     row |= provenance()

@@ -18,8 +18,8 @@ scene's own stream, as Warp's "warp" graph mode does on XLA's stream (keyed by t
 call's buffers, up to `_GRAPHS_PER_SCENE` per call and scene), and replays the graphs side by
 side: every scene stream waits for XLA's stream, and XLA's stream waits for every scene stream
 before the call returns. On the CPU it runs the scenes' Warp calls one after another, as the
-separate calls would (a check of the plumbing; `PhysicsConfig.concurrent_scenes` says when each
-is used).
+separate calls would (a check of the plumbing). `PhysicsConfig(concurrent_scenes=True)` turns this
+on; it is off by default until it is measured faster (docs/performance.md).
 """
 
 from __future__ import annotations
@@ -85,15 +85,15 @@ def concurrently(fns: Sequence[Callable[[Any], Any]], args: Sequence[Any]) -> li
         trees.append(jax.tree.structure(shape))
         runs.append(_interpret(closed.jaxpr, closed.consts, jax.tree.leaves(arg)))
     results: list[Any] = [None] * len(runs)
-    pending = {i: next_call(run, None, results, i) for i, run in enumerate(runs)}
+    pending = {i: _next_call(run, None, results, i) for i, run in enumerate(runs)}
     while pending := {i: call for i, call in pending.items() if call is not None}:
         order = sorted(pending)
         outputs = _combined_call([pending[i] for i in order])
-        pending = {i: next_call(runs[i], out, results, i) for i, out in zip(order, outputs, strict=True)}
+        pending = {i: _next_call(runs[i], out, results, i) for i, out in zip(order, outputs, strict=True)}
     return [jax.tree.unflatten(tree, leaves) for tree, leaves in zip(trees, results, strict=True)]
 
 
-def next_call(run: Generator, sent: Any, results: list[Any], i: int) -> _Call | None:
+def _next_call(run: Generator, sent: Any, results: list[Any], i: int) -> _Call | None:
     """Runs `run` to its next Warp call (returned) or to its end (its result goes to `results`)."""
     try:
         return run.send(sent)

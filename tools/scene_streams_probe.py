@@ -6,7 +6,8 @@ non-blocking (Warp's own streams block on CUDA's legacy default stream), and tog
 scenes' graphs not launched at all (`no_physics`: the state stands still; what the rest of the step
 costs). After the timed rollouts, one more rollout records a CUDA event before and after every graph
 launch: the graphs' summed GPU time and the time at least one ran (their union) per env step,
-against the step's wall time, say whether the GPU idles (host-bound) and whether graphs overlap.
+against the step's wall time, say whether the GPU idles (host-bound) and whether graphs overlap;
+the host's time inside Warp's FFI callbacks and mwjax's combined call, per env step, is timed too.
 
     XLA_PYTHON_CLIENT_MEM_FRACTION=0.45 python tools/scene_streams_probe.py --set MT10 --envs-per-task 64
 """
@@ -19,13 +20,17 @@ import functools
 import json
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import jax
 import warp as wp
+from warp._src.jax import ffi
 
 sys.path.insert(0, str(Path(__file__).parents[1]))
 import mwjax  # noqa: E402
+import mwjax.physics  # noqa: E402, F401  (installs its patches of Warp's callback before HostTimer's)
 from benchmarks.common import provenance, set_arg, tasks_arg  # noqa: E402
 from mwjax import scene_streams  # noqa: E402
 
@@ -101,8 +106,40 @@ class GraphTimeline:
         }
 
 
+class HostTimer:
+    """Host seconds spent inside the physics FFI callbacks while `active`."""
+
+    def __init__(self) -> None:
+        self.active = False
+        self.seconds = 0.0
+        callback = ffi.FfiCallable.ffi_callback
+        ffi.FfiCallable.ffi_callback = self.wrap(callback)
+
+    def wrap(self, fn: Callable[..., Any]) -> Callable[..., Any]:
+        def timed(*args: Any) -> Any:
+            if not self.active:
+                return fn(*args)
+            t0 = time.perf_counter()
+            try:
+                return fn(*args)
+            finally:
+                self.seconds += time.perf_counter() - t0
+
+        return timed
+
+    def summary(self, steps: int) -> dict:
+        seconds, self.seconds = self.seconds, 0.0
+        return {"host_callback_ms_per_step": 1000 * seconds / steps}
+
+
 def time_variant(
-    tasks: object, envs_per_task: int, steps: int, repeats: int, concurrent: bool, timeline: GraphTimeline
+    tasks: object,
+    envs_per_task: int,
+    steps: int,
+    repeats: int,
+    concurrent: bool,
+    timeline: GraphTimeline,
+    host: HostTimer,
 ) -> dict:
     env = mwjax.make(
         tasks, envs_per_task=envs_per_task, seed=0, physics=mwjax.PhysicsConfig(concurrent_scenes=concurrent)
@@ -121,11 +158,11 @@ def time_variant(
         t0 = time.perf_counter()
         state = jax.block_until_ready(compiled(state, jax.random.key(2 + i)))
         times.append(time.perf_counter() - t0)
-    timeline.active = True
+    timeline.active = host.active = True
     state = jax.block_until_ready(compiled(state, jax.random.key(2 + repeats)))
-    timeline.active = False
+    timeline.active = host.active = False
     row = {"ms_per_step": 1000 * min(times) / steps, "env_steps_per_s": env.num_envs * steps / min(times)}
-    return row | timeline.summary(steps)
+    return row | timeline.summary(steps) | host.summary(steps)
 
 
 def main() -> None:
@@ -144,13 +181,17 @@ def main() -> None:
     default_run = scene_streams._run_on_streams
     rows = {}
     timeline = GraphTimeline()
+    host = HostTimer()
+    scene_streams._run_in_order = host.wrap(scene_streams._run_in_order)  # the CPU's combined call
     for variant in args.variants:
         scene_streams._streams.clear()
         getter = {"one_stream": one_stream, "nonblocking": nonblocking_streams}.get(variant, default_get)
         scene_streams._Streams.get = getter
-        scene_streams._run_on_streams = no_physics if variant == "no_physics" else default_run
+        scene_streams._run_on_streams = host.wrap(no_physics if variant == "no_physics" else default_run)
         together = variant != "in_turn"
-        rows[variant] = time_variant(tasks, args.envs_per_task, args.steps, args.repeats, together, timeline)
+        rows[variant] = time_variant(
+            tasks, args.envs_per_task, args.steps, args.repeats, together, timeline, host
+        )
         print(variant, json.dumps(rows[variant]), flush=True)
     row = {"set": args.set, "envs_per_task": args.envs_per_task, "steps": args.steps, "variants": rows}
     row |= provenance()

@@ -26,6 +26,20 @@ import mwjax
 from mwjax import kernels
 
 
+@pytest.fixture
+def usage_error(capsys):
+    """`usage_error(main, *args)` calls a command line's `main`, checks that it ends in argparse's
+    usage error (exit status 2) and returns what it wrote on stderr."""
+
+    def run(main, *args):
+        with pytest.raises(SystemExit) as exit_info:
+            main(*args)
+        assert exit_info.value.code == 2
+        return capsys.readouterr().err
+
+    return run
+
+
 def _on_gpu() -> bool:
     return jax.default_backend() == "gpu"
 

@@ -32,9 +32,7 @@ def test_the_wait_for_a_first_step_is_timed_phase_by_phase(first_step, tmp_path)
     assert result["device"] and result["command"].startswith("python") and result["commit"]
 
 
-def test_bad_arguments_end_in_a_usage_error(first_step, tmp_path, capsys):
+def test_bad_arguments_end_in_a_usage_error(first_step, tmp_path, usage_error):
     cases = [(["--set", "MT11"], "unknown benchmark 'MT11'"), (["--envs-per-task", "0"], "positive")]
     for argv, message in cases:
-        with pytest.raises(SystemExit) as exit:
-            first_step.main([*argv, "--out", str(tmp_path / "x.json")])
-        assert exit.value.code == 2 and message in capsys.readouterr().err
+        assert message in usage_error(first_step.main, [*argv, "--out", str(tmp_path / "x.json")])

@@ -186,10 +186,8 @@ def test_a_cache_folder_that_cannot_be_written_warns_instead_of_failing_the_env(
     assert commands == []
 
 
-def test_the_command_line_refuses_an_unknown_set_without_a_traceback(capsys):
-    with pytest.raises(SystemExit) as exit:
-        kernels.main(["MT11"])
-    assert exit.value.code == 2 and "unknown benchmark 'MT11'" in capsys.readouterr().err
+def test_the_command_line_refuses_an_unknown_set_without_a_traceback(usage_error):
+    assert "unknown benchmark 'MT11'" in usage_error(kernels.main, ["MT11"])
 
 
 def test_the_child_builds_in_this_process_s_deterministic_mode(monkeypatch):

@@ -64,11 +64,8 @@ def test_importing_mwjax_claims_no_device():
         (["--steps", "many"], "not an integer"),
     ],
 )
-def test_bad_values_are_usage_errors(argv, message, capsys):
-    with pytest.raises(SystemExit) as exit_info:
-        main_job.parse_args(argv)
-    assert exit_info.value.code == 2
-    assert message in capsys.readouterr().err
+def test_bad_values_are_usage_errors(argv, message, usage_error):
+    assert message in usage_error(main_job.parse_args, argv)
 
 
 def test_bad_value_from_the_shell_gives_no_traceback():

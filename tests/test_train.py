@@ -325,16 +325,14 @@ def test_combine_makes_one_summary_of_seeds_run_separately(tmp_path, monkeypatch
         ({"seed": 1, "commit": "def5678"}, "different commits"),
     ],
 )
-def test_combine_refuses_runs_of_different_recipes(tmp_path, monkeypatch, capsys, other, message):
+def test_combine_refuses_runs_of_different_recipes(tmp_path, monkeypatch, usage_error, other, message):
     for folder in ("a", "b"):
         (tmp_path / folder).mkdir()
     first = _seed_file(tmp_path / "a", 0)
     seed, commit = other.pop("seed"), other.pop("commit", "abc1234")
     second = _seed_file(tmp_path / "b", seed, commit, **other)
     monkeypatch.setattr(sys, "argv", ["train_mt_ppo.py", "--combine", str(first), str(second)])
-    with pytest.raises(SystemExit) as exit:
-        ppo.main()
-    assert exit.value.code == 2 and message in capsys.readouterr().err
+    assert message in usage_error(ppo.main)
 
 
 def test_combine_across_commits_records_every_commit(tmp_path, monkeypatch):
@@ -432,21 +430,17 @@ def test_seeds_in_one_program_resume_from_their_checkpoint(tmp_path):
         (["--reward-version", "v3"], "reward_version must be 'v1' or 'v2'"),
     ],
 )
-def test_bad_arguments_end_in_a_usage_error_before_any_work(monkeypatch, capsys, argv, message):
+def test_bad_arguments_end_in_a_usage_error_before_any_work(monkeypatch, usage_error, argv, message):
     monkeypatch.setattr(sys, "argv", ["train_mt_ppo.py", *argv])
     monkeypatch.setattr(ppo, "train", lambda *args, **kwargs: pytest.fail("a refused run trains nothing"))
-    with pytest.raises(SystemExit) as exit:
-        ppo.main()
-    assert exit.value.code == 2 and message in capsys.readouterr().err
+    assert message in usage_error(ppo.main)
 
 
-def test_seeds_in_one_program_refuse_per_seed_options(monkeypatch, capsys):
+def test_seeds_in_one_program_refuse_per_seed_options(monkeypatch, usage_error):
     argv = ["train_mt_ppo.py", "--seeds", "0", "1", "--vmap-seeds", "--video", "v", "--parallel", "2"]
     monkeypatch.setattr(sys, "argv", argv)
     monkeypatch.setattr(kernels, "start_build", lambda tasks: pytest.fail("a refused run builds nothing"))
-    with pytest.raises(SystemExit) as exit:
-        ppo.main()
-    assert exit.value.code == 2 and "drop --parallel, --video" in capsys.readouterr().err
+    assert "drop --parallel, --video" in usage_error(ppo.main)
 
 
 def test_task_curves_follow_each_task_of_each_seed():

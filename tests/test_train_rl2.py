@@ -286,12 +286,10 @@ def test_seeds_in_parallel_make_one_summary(tmp_path, monkeypatch):
         (["--max-episode-steps", "0"], "max_episode_steps must be a positive int"),
     ],
 )
-def test_bad_arguments_end_in_a_usage_error_before_any_work(monkeypatch, capsys, argv, message):
+def test_bad_arguments_end_in_a_usage_error_before_any_work(monkeypatch, usage_error, argv, message):
     monkeypatch.setattr(sys, "argv", ["train_ml_rl2.py", *argv])
     monkeypatch.setattr(rl2, "train", lambda *args, **kwargs: pytest.fail("a refused run trains nothing"))
-    with pytest.raises(SystemExit) as exit:
-        rl2.main()
-    assert exit.value.code == 2 and message in capsys.readouterr().err
+    assert message in usage_error(rl2.main)
 
 
 def test_combine_summarizes_seeds_trained_by_separate_invocations(tmp_path, monkeypatch):

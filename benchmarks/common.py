@@ -74,6 +74,13 @@ def set_arg(text: str) -> str:
     return text
 
 
+def add_set_argument(parser: argparse.ArgumentParser, default: str) -> None:
+    """The `--set` option of the scripts that take one set (checked by `set_arg`)."""
+    parser.add_argument(
+        "--set", type=set_arg, default=default, help="a set name, MT1:<task>, or tasks separated by commas"
+    )
+
+
 def tasks_arg(text: str) -> str | list[str]:
     """A set as `mwjax.make` takes it (`mwjax.benchmarks.parse_tasks`)."""
     from mwjax.benchmarks import parse_tasks

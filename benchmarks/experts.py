@@ -20,7 +20,7 @@ from pathlib import Path
 
 import jax
 import numpy as np
-from common import build_kernels, provenance, rows_arg, set_arg, tasks_arg
+from common import add_set_argument, build_kernels, provenance, rows_arg, tasks_arg
 
 import mwjax
 from mwjax import policies
@@ -33,12 +33,7 @@ TOLERANCE = 0.04  # the issue's bar: every task within 0.04 below the reference
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument(
-        "--set",
-        type=set_arg,
-        default="MT50",
-        help="a set name, or task names separated by commas",
-    )
+    add_set_argument(parser, default="MT50")
     parser.add_argument(
         "--contacts", type=int, default=None, help="contacts_per_env (default: PhysicsConfig's)"
     )

@@ -20,7 +20,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from common import commit, provenance, result_path, set_arg, tasks_arg
+from common import add_set_argument, commit, provenance, result_path, tasks_arg
 
 
 def timed(phases: dict[str, float], name: str, work: Callable[[], Any]) -> Any:
@@ -34,12 +34,7 @@ def timed(phases: dict[str, float], name: str, work: Callable[[], Any]) -> Any:
 
 def main(argv: list[str] | None = None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument(
-        "--set",
-        type=set_arg,
-        default="MT50",
-        help="a set name, MT1:<task>, or tasks separated by commas",
-    )
+    add_set_argument(parser, default="MT50")
     parser.add_argument("--envs-per-task", type=int, default=1024)
     parser.add_argument("--out", type=Path, default=None, help="the result JSON (default: results/compile/)")
     args = parser.parse_args(argv)

@@ -34,7 +34,7 @@ from collections.abc import Callable
 import jax
 import jax.numpy as jnp
 import numpy as np
-from common import build_kernels, provenance, result_path, set_arg, tasks_arg
+from common import add_set_argument, build_kernels, provenance, result_path, tasks_arg
 from mujoco.mjx.third_party.mujoco_warp import OverflowType
 
 import mwjax
@@ -120,12 +120,7 @@ def record(table: dict, scenes: dict, args: argparse.Namespace, result: dict, po
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument(
-        "--set",
-        type=set_arg,
-        default="MT50",
-        help="a set name, or task names separated by commas",
-    )
+    add_set_argument(parser, default="MT50")
     parser.add_argument("--envs-per-task", type=int, default=1024)
     parser.add_argument("--steps", type=int, default=500, help="steps per run (500: whole episodes)")
     parser.add_argument("--policies", nargs="+", choices=POLICIES, default=list(POLICIES))

@@ -26,7 +26,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).parents[1]))
 import mwjax  # noqa: E402
-from benchmarks.common import provenance, set_arg, tasks_arg  # noqa: E402
+from benchmarks.common import add_set_argument, provenance, tasks_arg  # noqa: E402
 
 
 def rollout(tasks: object, envs_per_task: int, steps: int, concurrent: bool) -> tuple[np.ndarray, dict]:
@@ -62,7 +62,7 @@ def rollout(tasks: object, envs_per_task: int, steps: int, concurrent: bool) -> 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--set", type=set_arg, default="MT10", help="a set, or tasks joined by commas")
+    add_set_argument(parser, default="MT10")
     parser.add_argument("--envs-per-task", type=int, default=16)
     parser.add_argument("--steps", type=int, default=100)
     parser.add_argument("--out", default=None, help="JSON path")

@@ -31,7 +31,7 @@ from warp._src.jax import ffi
 sys.path.insert(0, str(Path(__file__).parents[1]))
 import mwjax  # noqa: E402
 import mwjax.physics  # noqa: E402, F401  (installs its patches of Warp's callback before HostTimer's)
-from benchmarks.common import provenance, set_arg, tasks_arg  # noqa: E402
+from benchmarks.common import add_set_argument, provenance, tasks_arg  # noqa: E402
 from mwjax import scene_streams  # noqa: E402
 
 
@@ -167,7 +167,7 @@ def time_variant(
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--set", type=set_arg, default="MT10", help="a set, or tasks joined by commas")
+    add_set_argument(parser, default="MT10")
     parser.add_argument("--envs-per-task", type=int, default=64)
     parser.add_argument("--steps", type=int, default=100)
     parser.add_argument("--repeats", type=int, default=2)

@@ -266,7 +266,8 @@ def scene_records(todo: Sequence[Scene], config: PhysicsConfig) -> list[Path] | 
         return None
     device = warp.get_preferred_device()
     common = (
-        dataclasses.astuple(config),
+        # Whether the scenes run side by side selects no module.
+        dataclasses.astuple(dataclasses.replace(config, concurrent_scenes=False)),
         _sources_digest(),
         warp.__version__,
         mujoco.__version__,

@@ -65,7 +65,11 @@ class _Site:
     calls: list[tuple[ffi.FfiCallable, int]]
     inputs: list[tuple[int, int]]
     outputs: list[tuple[int, int]]
-    graphs: list[collections.OrderedDict] = dataclasses.field(default_factory=list)
+    # Per call, its captured graphs by buffer addresses, least recently used first.
+    graphs: list[collections.OrderedDict] = dataclasses.field(init=False)
+
+    def __post_init__(self) -> None:
+        self.graphs = [collections.OrderedDict() for _ in self.calls]
 
 
 _lock = threading.Lock()
@@ -114,10 +118,9 @@ def _interpret(jaxpr: jex.core.Jaxpr, consts: Sequence[Any], args: Sequence[Any]
     env.update(zip(jaxpr.invars, args, strict=True))
     for eqn in jaxpr.eqns:
         invals = [read(v) for v in eqn.invars]
-        inner = _inner_jaxpr(eqn)
-        if eqn.primitive is jffi.ffi_call_p and _warp_callable(eqn.params["target_name"]) is not None:
+        if _is_warp_call(eqn):
             outvals = yield _warp_call(eqn, invals)
-        elif inner is not None:
+        elif (inner := _inner_jaxpr(eqn)) is not None:
             outvals = yield from _interpret(inner.jaxpr, inner.consts, invals)
         else:
             bound = eqn.primitive.get_bind_params(eqn.params)
@@ -138,8 +141,7 @@ _CALLED = {"custom_vmap_call": "call", "pjit": "jaxpr", "jit": "jaxpr", "closed_
 def _inner_jaxpr(eqn: Any) -> jex.core.ClosedJaxpr | None:
     """The jaxpr of a call to inline (it contains a Warp call), else None. A Warp call elsewhere
     (a loop's or a conditional's body) cannot join the others: an error."""
-    holds = [v for v in eqn.params.values() if isinstance(v, jex.core.ClosedJaxpr | jex.core.Jaxpr)]
-    if not any(_has_warp_call(j.jaxpr if isinstance(j, jex.core.ClosedJaxpr) else j) for j in holds):
+    if not any(_has_warp_call(jaxpr) for jaxpr in _held_jaxprs(eqn)):
         return None
     called = eqn.params.get(_CALLED.get(eqn.primitive.name, ""))
     if not isinstance(called, jex.core.ClosedJaxpr):
@@ -147,16 +149,22 @@ def _inner_jaxpr(eqn: Any) -> jex.core.ClosedJaxpr | None:
     return called
 
 
+def _held_jaxprs(eqn: Any) -> list[jex.core.Jaxpr]:
+    """The jaxprs among an equation's parameters (a call's, a loop's or a conditional's bodies)."""
+    values = eqn.params.values()
+    return [v.jaxpr if isinstance(v, jex.core.ClosedJaxpr) else v for v in values if _is_jaxpr(v)]
+
+
+def _is_jaxpr(value: Any) -> bool:
+    return isinstance(value, jex.core.ClosedJaxpr | jex.core.Jaxpr)
+
+
 def _has_warp_call(jaxpr: jex.core.Jaxpr) -> bool:
-    for eqn in jaxpr.eqns:
-        if eqn.primitive is jffi.ffi_call_p and _warp_callable(eqn.params["target_name"]) is not None:
-            return True
-        for value in eqn.params.values():
-            if isinstance(value, jex.core.ClosedJaxpr) and _has_warp_call(value.jaxpr):
-                return True
-            if isinstance(value, jex.core.Jaxpr) and _has_warp_call(value):
-                return True
-    return False
+    return any(_is_warp_call(eqn) or any(map(_has_warp_call, _held_jaxprs(eqn))) for eqn in jaxpr.eqns)
+
+
+def _is_warp_call(eqn: Any) -> bool:
+    return eqn.primitive is jffi.ffi_call_p and _warp_callable(eqn.params["target_name"]) is not None
 
 
 def _warp_callable(name: str) -> ffi.FfiCallable | None:
@@ -190,8 +198,7 @@ def _combined_call(calls: list[_Call]) -> list[list[Any]]:
     site = int.from_bytes(hashlib.blake2b(described.encode(), digest_size=8).digest(), "little") >> 1
     with _lock:
         if site not in _sites:
-            described_calls = [(call.callable, call.call_id) for call in calls]
-            _sites[site] = _Site(described_calls, inputs, outputs, [collections.OrderedDict() for _ in calls])
+            _sites[site] = _Site([(call.callable, call.call_id) for call in calls], inputs, outputs)
     flat = jax.ffi.ffi_call(_TARGET, out_types, input_output_aliases=aliases, has_side_effect=False)(
         *operands, site=np.int64(site)
     )

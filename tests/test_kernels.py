@@ -326,3 +326,11 @@ def test_the_child_process_of_a_prebuild_builds_and_records_the_scenes(tmp_path)
     assert int(built.stdout.split()[0]) > 10, built.stdout
     records = sorted(path.name for path in Path(tmp_path).rglob("mwjax-built-*"))
     assert len(records) == 2, records
+
+
+def test_records_name_what_selects_the_modules():
+    todo = kernels.scenes(["reach-v3"])
+    default = kernels.scene_records(todo, mwjax.PhysicsConfig())
+    assert default is not None
+    assert kernels.scene_records(todo, mwjax.PhysicsConfig(concurrent_scenes=True)) == default
+    assert kernels.scene_records(todo, mwjax.PhysicsConfig(substeps=4)) != default

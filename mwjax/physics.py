@@ -169,8 +169,10 @@ class PhysicsConfig:
     box_box_collider: str = "box_box"
     # Whether an env step runs its scenes' Warp calls as one FFI call, each scene's CUDA graph on
     # its own stream (`mwjax.scene_streams`; on the CPU the scenes in turn inside that call).
-    # Off by default: on an H200 it was not yet faster than one call per scene (docs/performance.md).
-    concurrent_scenes: bool = False
+    # None: where it was measured faster (2.5-2.9x per env step on an H200, docs/performance.md),
+    # that is on one GPU with Warp capturing the graphs (`graph_mode` None or "warp", not under
+    # `mwjax.determinism`); elsewhere one call per scene (`runs_scenes_together`).
+    concurrent_scenes: bool | None = None
 
     def __post_init__(self) -> None:
         for name in ("substeps", "contacts_per_env", "iterations", "ls_iterations"):
@@ -191,8 +193,19 @@ class PhysicsConfig:
                 f"{self.contacts_per_env}], not {pairs!r}"
             )
         _graph_mode(self.graph_mode)
-        if not isinstance(self.concurrent_scenes, bool):
-            raise ValueError(f"concurrent_scenes must be True or False, not {self.concurrent_scenes!r}")
+        if self.concurrent_scenes is not None and not isinstance(self.concurrent_scenes, bool):
+            raise ValueError(f"concurrent_scenes must be True, False or None, not {self.concurrent_scenes!r}")
+
+
+def runs_scenes_together(config: PhysicsConfig, platform: str, devices: int = 1) -> bool:
+    """Whether an env step with `config`, on `devices` devices of `platform`, issues its scenes'
+    Warp calls together (`PhysicsConfig.concurrent_scenes`; None resolved here). The default is
+    on only where it was measured: one GPU, Warp capturing the graphs itself. Several GPUs are
+    not measured yet; on the CPU the call would run the scenes in turn, as separate calls do."""
+    if config.concurrent_scenes is not None:
+        return config.concurrent_scenes
+    own_graphs = config.graph_mode in (None, "warp") and not determinism.enabled()
+    return platform == "gpu" and devices == 1 and own_graphs
 
 
 def _is_int(value: object) -> bool:
@@ -288,6 +301,7 @@ class Physics:
                 f"does; it cannot run with graph_mode={config.graph_mode!r} or under mwjax.determinism"
             )
         self.config = config
+        self.concurrent_scenes = runs_scenes_together(config, local_device().platform)
         from mwjax import kernels  # here: `mwjax.kernels` builds on this module
 
         kernels.prebuild(list(dict.fromkeys((scene, bodies) for scene, bodies, _ in scenes)), config)
@@ -380,7 +394,7 @@ class Physics:
         overflow flags of the result are those this step raised; a buffer that dropped something
         in a scene for the first time raises a `PhysicsOverflowWarning` on the host."""
         cleared = tuple(state.replace(overflow=jnp.zeros_like(state.overflow)) for state in states)
-        if self.config.concurrent_scenes:
+        if self.concurrent_scenes:
             stepped = merge_rows(self._step_all)(cleared)
         else:
             stepped = tuple(self.step_group(g, state) for g, state in enumerate(cleared))

@@ -18,8 +18,9 @@ scene's own stream, as Warp's "warp" graph mode does on XLA's stream (keyed by t
 call's buffers, up to `_GRAPHS_PER_SCENE` per call and scene), and replays the graphs side by
 side: every scene stream waits for XLA's stream, and XLA's stream waits for every scene stream
 before the call returns. On the CPU it runs the scenes' Warp calls one after another, as the
-separate calls would (a check of the plumbing). `PhysicsConfig(concurrent_scenes=True)` turns this
-on; it is off by default until it is measured faster (docs/performance.md).
+separate calls would (a check of the plumbing). `PhysicsConfig.concurrent_scenes` selects it; by
+default an env on one GPU uses it (`physics.runs_scenes_together`; docs/performance.md has the
+measurements).
 """
 
 from __future__ import annotations

@@ -42,7 +42,7 @@ from mwjax.config import EnvConfig
 from mwjax.contracts import Kinematics
 from mwjax.env import Env, State
 from mwjax.goals import goal_pools
-from mwjax.physics import PhysicsConfig
+from mwjax.physics import PhysicsConfig, runs_scenes_together
 from mwjax.sawyer import check_action
 
 Array = jax.Array
@@ -70,12 +70,16 @@ class ShardedEnv:
                 f"envs_per_task={envs_per_task} is not a multiple of the {n} devices: every device "
                 "steps an equal share of every task"
             )
-        graph_mode = (config.physics or PhysicsConfig()).graph_mode
-        if n > 1 and graph_mode in _ONE_GRAPH_PER_CALL:
+        physics = config.physics or PhysicsConfig()
+        if n > 1 and physics.graph_mode in _ONE_GRAPH_PER_CALL:
             raise ValueError(
-                f"graph_mode={graph_mode!r} keeps one CUDA graph per traced Warp call, which every "
-                "device would replay; use 'warp' (one graph per device), 'jax' or 'none'"
+                f"graph_mode={physics.graph_mode!r} keeps one CUDA graph per traced Warp call, which "
+                "every device would replay; use 'warp' (one graph per device), 'jax' or 'none'"
             )
+        # The default for scenes side by side depends on the device count, which the local env
+        # does not see.
+        together = runs_scenes_together(physics, devices[0].platform, n)
+        config = dataclasses.replace(config, physics=dataclasses.replace(physics, concurrent_scenes=together))
         self.devices = devices
         self.mesh = Mesh(np.array(devices), (AXIS,))
         self.sharding = NamedSharding(self.mesh, P(AXIS))

@@ -1,6 +1,6 @@
-"""`PhysicsConfig(concurrent_scenes=True)`: an env step's scenes as one FFI call
-(`mwjax.scene_streams`). On the CPU the call runs the scenes in turn, so a rollout must equal the
-one with a call per scene bit for bit; the GPU's side-by-side streams are checked by
+"""`PhysicsConfig(concurrent_scenes=...)`: an env step's scenes as one FFI call
+(`mwjax.scene_streams`), the default on one GPU. On the CPU the call runs the scenes in turn, so a
+rollout must equal the one with a call per scene bit for bit; the GPU's side-by-side streams are checked by
 `tools/scene_streams_check.py` (results in benchmarks/results/profile/)."""
 
 from __future__ import annotations
@@ -13,7 +13,8 @@ import numpy as np
 import pytest
 
 import mwjax
-from mwjax import scene_streams
+from mwjax import determinism, scene_streams
+from mwjax.physics import runs_scenes_together
 
 TASKS = ["pick-place-v3", "reach-v3"]
 
@@ -54,10 +55,38 @@ def test_a_warp_call_inside_a_loop_is_refused():
         jax.eval_shape(lambda d: scene_streams.concurrently([looped], [d]), data)
 
 
-@pytest.mark.parametrize("value", ["yes", None, 1])
-def test_concurrent_scenes_takes_a_bool(value: object):
+@pytest.mark.parametrize("value", ["yes", 0, 1])
+def test_concurrent_scenes_takes_a_bool_or_none(value: object):
     with pytest.raises(ValueError, match="concurrent_scenes"):
         mwjax.PhysicsConfig(concurrent_scenes=value)
+
+
+@pytest.mark.parametrize(
+    ("config", "platform", "devices", "together"),
+    [
+        ({}, "gpu", 1, True),  # the default where it was measured faster
+        ({"graph_mode": "warp"}, "gpu", 1, True),
+        ({}, "cpu", 1, False),  # the call would run the scenes in turn anyway
+        ({}, "gpu", 2, False),  # not measured over several devices
+        ({"graph_mode": "warp_staged_ex"}, "gpu", 1, False),  # the adapter's mode captures per call
+        ({"graph_mode": "none"}, "gpu", 1, False),
+        ({"concurrent_scenes": True}, "cpu", 2, True),  # asked for: as asked
+        ({"concurrent_scenes": False}, "gpu", 1, False),
+    ],
+)
+def test_scenes_run_together_by_default_on_one_gpu_with_warps_own_graphs(config, platform, devices, together):
+    physics = mwjax.PhysicsConfig(**config)
+    assert runs_scenes_together(physics, platform, devices) is together
+
+
+def test_the_deterministic_mode_runs_the_scenes_in_turn(monkeypatch):
+    monkeypatch.setattr(determinism, "enabled", lambda: True)
+    assert not runs_scenes_together(mwjax.PhysicsConfig(), "gpu")
+
+
+def test_an_env_resolves_the_default_for_its_device():
+    env = mwjax.make(["reach-v3"], envs_per_task=1)
+    assert env.physics.concurrent_scenes == (jax.default_backend() == "gpu")
 
 
 @pytest.mark.parametrize("stride_words", [6, 11, None])

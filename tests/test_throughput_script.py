@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import importlib.util
 import json
 import os
 import sys
@@ -9,6 +10,8 @@ from pathlib import Path
 
 import children
 import pytest
+
+import mwjax
 
 SCRIPT = Path(__file__).parents[1] / "benchmarks" / "throughput.py"
 
@@ -30,3 +33,30 @@ def test_a_row_with_overflow_is_refused_and_a_shorter_rollout_is_labelled(reques
     assert row["protocol"] == "labelled: 3-step rollouts; constraints_per_env=4"
     for key in ("device", "commit", "date", "command"):
         assert result[key]
+
+
+@pytest.fixture(scope="module")
+def throughput():
+    sys.path.insert(0, str(SCRIPT.parent))  # the script imports its sibling `common`
+    try:
+        spec = importlib.util.spec_from_file_location("throughput", SCRIPT)
+        module = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(module)
+        yield module
+    finally:
+        sys.path.remove(str(SCRIPT.parent))
+
+
+@pytest.mark.parametrize(
+    ("together", "platform", "labels"),
+    [
+        (None, "gpu", []),
+        (True, "gpu", []),  # what the default does on one GPU
+        (False, "gpu", ["concurrent_scenes=False"]),
+        (None, "cpu", []),
+        (True, "cpu", ["concurrent_scenes=True"]),
+    ],
+)
+def test_scenes_side_by_side_are_labelled_by_what_the_device_runs(throughput, together, platform, labels):
+    physics = mwjax.PhysicsConfig(concurrent_scenes=together)
+    assert throughput.deviations(500, True, None, physics, platform) == labels

@@ -32,6 +32,40 @@ def timed(phases: dict[str, float], name: str, work: Callable[[], Any]) -> Any:
     return result
 
 
+class CacheEvents:
+    """What JAX's persistent cache did while listening: entries read (hits), entries written
+    (misses of programs worth caching), and the seconds reading took."""
+
+    def __init__(self) -> None:
+        self.counts = {"hits": 0, "writes": 0}
+        self.read_s = 0.0
+
+    def __enter__(self) -> CacheEvents:
+        import jax.monitoring
+
+        jax.monitoring.register_event_listener(self._event)
+        jax.monitoring.register_event_duration_secs_listener(self._duration)
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        import jax.monitoring
+
+        jax.monitoring.unregister_event_listener(self._event)
+        jax.monitoring.unregister_event_duration_listener(self._duration)
+
+    def _event(self, event: str, **kwargs: Any) -> None:
+        name = {"/jax/compilation_cache/cache_hits": "hits", "/jax/compilation_cache/cache_misses": "writes"}
+        if event in name:
+            self.counts[name[event]] += 1
+
+    def _duration(self, event: str, seconds: float, **kwargs: Any) -> None:
+        if event == "/jax/compilation_cache/cache_retrieval_time_sec":
+            self.read_s += seconds
+
+    def summary(self) -> dict:
+        return {**self.counts, "read_s": round(self.read_s, 2)}
+
+
 def main(argv: list[str] | None = None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     add_set_argument(parser, default="MT50")
@@ -55,11 +89,13 @@ def main(argv: list[str] | None = None) -> dict:
         parser.error(str(error))
     key = jax.random.key(0)
     reset = timed(phases, "reset_lower", lambda: jax.jit(env.reset).lower(key))
-    reset = timed(phases, "reset_compile", reset.compile)
+    with CacheEvents() as reset_cache:
+        reset = timed(phases, "reset_compile", reset.compile)
     state = timed(phases, "reset_run", lambda: jax.block_until_ready(reset(key)))
     actions = jnp.zeros((env.num_envs, 4))
     step = timed(phases, "step_lower", lambda: jax.jit(env.step).lower(state, actions))
-    step = timed(phases, "step_compile", step.compile)
+    with CacheEvents() as step_cache:
+        step = timed(phases, "step_compile", step.compile)
     state = timed(phases, "step_run", lambda: jax.block_until_ready(step(state, actions)))
     total = time.perf_counter() - start
     builds = progress.kernel_builds()
@@ -72,6 +108,13 @@ def main(argv: list[str] | None = None) -> dict:
         "kernel_modules_built_in_this_process": builds.built,
         "kernel_modules_loaded_from_cache": builds.cached,
         "warp_cache": warp.config.kernel_cache_dir,
+        # Per compile phase: did it read JAX's persistent cache (hits), write to it, and how long
+        # reading took (a cached GPU program is fingerprinted as it loads; docs/performance.md).
+        "jax_cache": {
+            "dir": jax.config.jax_compilation_cache_dir,
+            "reset": reset_cache.summary(),
+            "step": step_cache.summary(),
+        },
         "overflow_envs": int(np.count_nonzero(np.asarray(state.info["physics_overflow"]) & int(DROPPED))),
     }
     print(f"from mwjax.make to the first step's result: {total:.1f} s", flush=True)

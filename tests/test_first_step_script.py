@@ -30,6 +30,10 @@ def test_the_wait_for_a_first_step_is_timed_phase_by_phase(first_step, tmp_path)
     assert result["make_to_first_step_s"] >= sum(phases.values()) - 0.01 * len(phases)  # rounding
     assert result["envs"] == 1 and result["overflow_envs"] == 0
     assert result["device"] and result["command"].startswith("python") and result["commit"]
+    # The step's compile (seconds on the CPU, over JAX's 1 s threshold) reads or writes JAX's cache.
+    step = result["jax_cache"]["step"]
+    assert result["jax_cache"]["dir"] and step["hits"] + step["writes"] == 1
+    assert step["read_s"] > 0 if step["hits"] else step["read_s"] == 0
 
 
 def test_bad_arguments_end_in_a_usage_error(first_step, tmp_path, usage_error):

@@ -20,13 +20,20 @@ TASKS = ["pick-place-v3", "reach-v3"]
 
 
 @pytest.mark.skipif(jax.default_backend() != "cpu", reason="bit-for-bit equality holds on the CPU")
-def test_together_steps_equal_separate_calls_through_an_autoreset():
-    actions = jax.random.uniform(jax.random.key(1), (4, 2 * 2, 4), minval=-1, maxval=1)
+@pytest.mark.parametrize("seeds", [None, 2], ids=["one-batch", "vmapped-seeds"])
+def test_together_steps_equal_separate_calls_through_an_autoreset(seeds: int | None):
+    """Also under an outer `vmap` (the training examples' seeds), whose rows the physics merges."""
+    shape = (4, 2 * 2, 4) if seeds is None else (4, seeds, 2 * 2, 4)
+    actions = jax.random.uniform(jax.random.key(1), shape, minval=-1, maxval=1)
 
     def rollout(together: bool) -> list[np.ndarray]:
         physics = mwjax.PhysicsConfig(concurrent_scenes=together)
         env = mwjax.make(TASKS, envs_per_task=2, seed=4, physics=physics, max_episode_steps=2)
-        state, step = jax.jit(env.reset)(jax.random.key(0)), jax.jit(env.step)
+        reset, step = env.reset, env.step
+        keys = jax.random.key(0) if seeds is None else jax.random.split(jax.random.key(0), seeds)
+        if seeds is not None:
+            reset, step = jax.vmap(reset), jax.vmap(step)
+        state, step = jax.jit(reset)(keys), jax.jit(step)
         out = []
         for action in actions:  # the episodes end at the second step and restart
             state = step(state, action)

@@ -500,7 +500,16 @@ class Physics:
         return jnp.concatenate([state.overflow for state in states])
 
     def kinematics(self, states: tuple[PhysicsState, ...]) -> tuple[PhysicsState, ...]:
-        """The poses of `states` computed from their qpos (and mocap bodies)."""
+        """The poses of `states` computed from their qpos (and mocap bodies); the groups' Warp
+        calls issued together where the step's are (`concurrent_scenes`)."""
+        if self.concurrent_scenes:
+
+            def together(states: tuple[PhysicsState, ...]) -> tuple[PhysicsState, ...]:
+                datas = [self.data(g, state) for g, state in enumerate(states)]
+                posed = scene_streams.concurrently(list(self._kinematics), datas)
+                return tuple(_carried(d, s.rows_needed, s.reset) for d, s in zip(posed, states, strict=True))
+
+            return merge_rows(together)(states)
         return tuple(
             merge_rows(lambda s, g=g: _carried(self._kinematics[g](self.data(g, s)), s.rows_needed, s.reset))(
                 state

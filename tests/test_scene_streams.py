@@ -34,7 +34,7 @@ def test_together_steps_equal_separate_calls_through_an_autoreset(seeds: int | N
         if seeds is not None:
             reset, step = jax.vmap(reset), jax.vmap(step)
         state, step = jax.jit(reset)(keys), jax.jit(step)
-        out = []
+        out = [np.asarray(x) for x in (state.obs, *jax.tree.leaves(state.physics))]  # the reset's poses
         for action in actions:  # the episodes end at the second step and restart
             state = step(state, action)
             out += [np.asarray(x) for x in (state.obs, state.reward, state.info["physics_overflow"])]

@@ -167,8 +167,8 @@ class PhysicsConfig:
     # "box_box": Warp's port of MuJoCo C's `mjc_BoxBox` (C's collider, see `warp_model`);
     # "convex": Warp's general convex collider (GJK/EPA), MJX-Warp's own default.
     box_box_collider: str = "box_box"
-    # Whether an env step runs its scenes' Warp calls as one FFI call, each scene's CUDA graph on
-    # its own stream (`mwjax.scene_streams`; on the CPU the scenes in turn inside that call).
+    # Whether an env step runs its scenes' Warp calls side by side, each scene's CUDA graph on its
+    # own stream (`mwjax.scene_streams`; on the CPU the scenes in turn, bit for bit the same).
     # None: where it was measured faster (2.5-2.9x per env step on an H200, docs/performance.md),
     # that is on one GPU with Warp capturing the graphs (`graph_mode` None or "warp", not under
     # `mwjax.determinism`); elsewhere one call per scene (`runs_scenes_together`).

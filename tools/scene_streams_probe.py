@@ -182,7 +182,8 @@ def main() -> None:
     rows = {}
     timeline = GraphTimeline()
     host = HostTimer()
-    scene_streams._run_in_order = host.wrap(scene_streams._run_in_order)  # the CPU's combined call
+    scene_streams._run = host.wrap(scene_streams._run)  # the CPU's launches
+    scene_streams._join = host.wrap(scene_streams._join)
     for variant in args.variants:
         scene_streams._streams.clear()
         getter = {"one_stream": one_stream, "nonblocking": nonblocking_streams}.get(variant, default_get)

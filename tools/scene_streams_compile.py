@@ -1,0 +1,62 @@
+"""How long the env step takes to lower and to compile with its scenes' Warp calls in turn and
+issued together (`PhysicsConfig.concurrent_scenes`), JAX's persistent cache off, each mode in a
+fresh process. On the CPU this times XLA's passes over the program's FFI calls (the GPU's compile
+follows the same passes and adds its own):
+
+    python tools/scene_streams_compile.py --set MT10 --out benchmarks/results/compile/scene-streams-compile-MT10-<commit>-cpu-<date>.json
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).parents[1]))
+from benchmarks.common import add_set_argument, provenance  # noqa: E402
+
+CHILD = """
+import json, sys, time
+import jax, jax.numpy as jnp
+import mwjax
+from benchmarks.common import tasks_arg
+name, envs_per_task, together = sys.argv[1], int(sys.argv[2]), sys.argv[3] == "1"
+env = mwjax.make(tasks_arg(name), envs_per_task=envs_per_task,
+                 physics=mwjax.PhysicsConfig(concurrent_scenes=together))
+state = jax.jit(env.reset)(jax.random.key(0))
+actions = jnp.zeros((env.num_envs, 4))
+t0 = time.perf_counter()
+lowered = jax.jit(env.step).lower(state, actions)
+t1 = time.perf_counter()
+lowered.compile()
+t2 = time.perf_counter()
+print(json.dumps({"lower_s": round(t1 - t0, 2), "compile_s": round(t2 - t1, 2),
+                  "ffi_calls": lowered.as_text().count("stablehlo.custom_call")}))
+"""
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    add_set_argument(parser, default="MT10")
+    parser.add_argument("--envs-per-task", type=int, default=1)
+    parser.add_argument("--out", default=None, help="JSON path")
+    args = parser.parse_args()
+    root = Path(__file__).parents[1]
+    env = dict(os.environ, MWJAX_NO_CACHE="1", PYTHONPATH=f"{root}{os.pathsep}{os.environ.get('PYTHONPATH', '')}")
+    rows = {}
+    for mode, flag in (("in_turn", "0"), ("together", "1")):
+        command = [sys.executable, "-c", CHILD, args.set, str(args.envs_per_task), flag]
+        run = subprocess.run(command, env=env, capture_output=True, text=True, check=True)
+        rows[mode] = json.loads(run.stdout.strip().splitlines()[-1])
+        print(mode, json.dumps(rows[mode]), flush=True)
+    row = {"set": args.set, "envs_per_task": args.envs_per_task, "modes": rows, **provenance()}
+    print(json.dumps(row))
+    if args.out:
+        Path(args.out).write_text(json.dumps(row, indent=1) + "\n")
+
+
+if __name__ == "__main__":
+    main()

@@ -3,7 +3,7 @@ issued together (`PhysicsConfig.concurrent_scenes`), JAX's persistent cache off,
 fresh process. On the CPU this times XLA's passes over the program's FFI calls (the GPU's compile
 follows the same passes and adds its own):
 
-    python tools/scene_streams_compile.py --set MT10 --out benchmarks/results/compile/scene-streams-compile-MT10-<commit>-cpu-<date>.json
+    python tools/scene_streams_compile.py --set MT10 --out scene-streams-compile-MT10.json
 """
 
 from __future__ import annotations
@@ -45,7 +45,8 @@ def main() -> None:
     parser.add_argument("--out", default=None, help="JSON path")
     args = parser.parse_args()
     root = Path(__file__).parents[1]
-    env = dict(os.environ, MWJAX_NO_CACHE="1", PYTHONPATH=f"{root}{os.pathsep}{os.environ.get('PYTHONPATH', '')}")
+    path = f"{root}{os.pathsep}{os.environ.get('PYTHONPATH', '')}"
+    env = dict(os.environ, MWJAX_NO_CACHE="1", PYTHONPATH=path)
     rows = {}
     for mode, flag in (("in_turn", "0"), ("together", "1")):
         command = [sys.executable, "-c", CHILD, args.set, str(args.envs_per_task), flag]

@@ -24,7 +24,7 @@ call. That round of calls becomes two FFI calls per scene, to mwjax's own target
 
 The evaluation then goes on to the next round of Warp calls or the end. (One FFI call for a whole
 round would do the same with fewer host calls, but XLA's compile time grows faster than linearly
-with the aliased operands of one call: MT10's step took 84 s to compile on the CPU instead of 11.)
+with the aliased operands of one call: MT10's step compiled ~8x slower; docs/performance.md.)
 On the CPU a launch runs its scene's Warp call to the end and a join does nothing, so a rollout is
 bit for bit that of one Warp call per scene. `PhysicsConfig.concurrent_scenes` selects this; by
 default an env on one GPU uses it (`physics.runs_scenes_together`; docs/performance.md has the

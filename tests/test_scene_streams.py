@@ -68,7 +68,7 @@ def test_a_round_is_a_launch_per_scene_then_a_join_per_scene_that_waits_for_ever
     launches come first (every join takes every launch's token), each join passes its launch's
     outputs through (their consumers come after it) and keeps its read-only inputs alive. One
     call per scene, not one for the round: XLA's compile grows faster than linearly with one
-    call's aliased operands (MT10's step: 84 s instead of 11 on the CPU as one call)."""
+    call's aliased operands (docs/performance.md)."""
     env = mwjax.make(TASKS, envs_per_task=1)
     physics = env.physics
     datas = [physics.data(g, state) for g, state in enumerate(physics.make_data())]

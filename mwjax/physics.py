@@ -204,8 +204,13 @@ def runs_scenes_together(config: PhysicsConfig, platform: str, devices: int = 1)
     not measured yet; on the CPU the call would run the scenes in turn, as separate calls do."""
     if config.concurrent_scenes is not None:
         return config.concurrent_scenes
-    own_graphs = config.graph_mode in (None, "warp") and not determinism.enabled()
-    return platform == "gpu" and devices == 1 and own_graphs
+    return platform == "gpu" and devices == 1 and _warp_captures_graphs(config)
+
+
+def _warp_captures_graphs(config: PhysicsConfig) -> bool:
+    """Whether Warp captures the CUDA graphs itself on a GPU (its "warp" mode), as the scenes'
+    streams do: not in the staged modes, without capture or under `mwjax.determinism`."""
+    return config.graph_mode in (None, "warp") and not determinism.enabled()
 
 
 def _is_int(value: object) -> bool:
@@ -288,20 +293,20 @@ class Physics:
     """One MJX-Warp batch per scene; the batch's state is a tuple with one `PhysicsState` per group."""
 
     def __init__(self, scenes: Sequence[tuple[str, tuple[str, ...], int]], config: PhysicsConfig) -> None:
-        if local_device().platform != "gpu" and config.graph_mode not in (None, *_CPU_GRAPH_MODES):
+        platform = local_device().platform
+        if platform != "gpu" and config.graph_mode not in (None, *_CPU_GRAPH_MODES):
             # Warp would accept it here and fail at the first step, inside XLA.
             raise ValueError(
                 f"graph_mode={config.graph_mode!r} captures CUDA graphs and needs a GPU; on the CPU "
                 f"Warp runs {' or '.join(map(repr, _CPU_GRAPH_MODES))} (or None, MJX's choice)"
             )
-        own_graphs = config.graph_mode in (None, "warp") and not determinism.enabled()
-        if config.concurrent_scenes and local_device().platform == "gpu" and not own_graphs:
+        if config.concurrent_scenes and platform == "gpu" and not _warp_captures_graphs(config):
             raise ValueError(
                 "concurrent_scenes=True captures each scene's CUDA graphs itself, as graph_mode='warp' "
                 f"does; it cannot run with graph_mode={config.graph_mode!r} or under mwjax.determinism"
             )
         self.config = config
-        self.concurrent_scenes = runs_scenes_together(config, local_device().platform)
+        self.concurrent_scenes = runs_scenes_together(config, platform)
         from mwjax import kernels  # here: `mwjax.kernels` builds on this module
 
         kernels.prebuild(list(dict.fromkeys((scene, bodies) for scene, bodies, _ in scenes)), config)
@@ -502,20 +507,13 @@ class Physics:
     def kinematics(self, states: tuple[PhysicsState, ...]) -> tuple[PhysicsState, ...]:
         """The poses of `states` computed from their qpos (and mocap bodies); the groups' Warp
         calls issued together where the step's are (`concurrent_scenes`)."""
-        if self.concurrent_scenes:
+        issue = scene_streams.concurrently if self.concurrent_scenes else _in_turn
 
-            def together(states: tuple[PhysicsState, ...]) -> tuple[PhysicsState, ...]:
-                datas = [self.data(g, state) for g, state in enumerate(states)]
-                posed = scene_streams.concurrently(list(self._kinematics), datas)
-                return tuple(_carried(d, s.rows_needed, s.reset) for d, s in zip(posed, states, strict=True))
+        def posed(states: tuple[PhysicsState, ...]) -> tuple[PhysicsState, ...]:
+            datas = issue(list(self._kinematics), [self.data(g, state) for g, state in enumerate(states)])
+            return tuple(_carried(d, s.rows_needed, s.reset) for d, s in zip(datas, states, strict=True))
 
-            return merge_rows(together)(states)
-        return tuple(
-            merge_rows(lambda s, g=g: _carried(self._kinematics[g](self.data(g, s)), s.rows_needed, s.reset))(
-                state
-            )
-            for g, state in enumerate(states)
-        )
+        return merge_rows(posed)(states)
 
 
 def warp_model(scene: str, mocap_bodies: tuple[str, ...], config: PhysicsConfig) -> mujoco.MjModel:

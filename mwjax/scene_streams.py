@@ -334,8 +334,8 @@ def _run_on_streams(site: _Site, frame: Any, inputs: int, outputs: int) -> None:
     xla_stream = xla_ffi.get_stream_from_callframe(frame)
     device, own = _device_streams(frame)
     stream = own.get(site.slot + 1)[site.slot]
-    key = (_data_pointers(inputs, site.inputs).tobytes(), _data_pointers(outputs, site.outputs).tobytes())
-    key = (device.ordinal, *key)
+    in_ptrs, out_ptrs = _data_pointers(inputs, site.inputs), _data_pointers(outputs, site.outputs)
+    key = (device.ordinal, in_ptrs.tobytes(), out_ptrs.tobytes())
     core.wp_cuda_event_record(own.start.cuda_event, xla_stream, False)
     core.wp_cuda_stream_wait_event(stream.cuda_stream, own.start.cuda_event, False)
     capture = site.graphs.get(key)

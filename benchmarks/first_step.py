@@ -32,6 +32,9 @@ def timed(phases: dict[str, float], name: str, work: Callable[[], Any]) -> Any:
     return result
 
 
+_CACHE_EVENTS = {"/jax/compilation_cache/cache_hits": "hits", "/jax/compilation_cache/cache_misses": "writes"}
+
+
 class CacheEvents:
     """What JAX's persistent cache did while listening: entries read (hits), entries written
     (misses of programs worth caching), and the seconds reading took."""
@@ -54,9 +57,8 @@ class CacheEvents:
         jax.monitoring.unregister_event_duration_listener(self._duration)
 
     def _event(self, event: str, **kwargs: Any) -> None:
-        name = {"/jax/compilation_cache/cache_hits": "hits", "/jax/compilation_cache/cache_misses": "writes"}
-        if event in name:
-            self.counts[name[event]] += 1
+        if event in _CACHE_EVENTS:
+            self.counts[_CACHE_EVENTS[event]] += 1
 
     def _duration(self, event: str, seconds: float, **kwargs: Any) -> None:
         if event == "/jax/compilation_cache/cache_retrieval_time_sec":

@@ -505,12 +505,12 @@ class Physics:
         return jnp.concatenate([state.overflow for state in states])
 
     def kinematics(self, states: tuple[PhysicsState, ...]) -> tuple[PhysicsState, ...]:
-        """The poses of `states` computed from their qpos (and mocap bodies); the groups' Warp
-        calls issued together where the step's are (`concurrent_scenes`)."""
-        issue = scene_streams.concurrently if self.concurrent_scenes else _in_turn
+        """The poses of `states` computed from their qpos (and mocap bodies), one group after
+        another: the scenes side by side (`concurrent_scenes`) are checked on a GPU in the step
+        (whose last part is this) but not here."""
 
         def posed(states: tuple[PhysicsState, ...]) -> tuple[PhysicsState, ...]:
-            datas = issue(list(self._kinematics), [self.data(g, state) for g, state in enumerate(states)])
+            datas = _in_turn(list(self._kinematics), [self.data(g, state) for g, state in enumerate(states)])
             return tuple(_carried(d, s.rows_needed, s.reset) for d, s in zip(datas, states, strict=True))
 
         return merge_rows(posed)(states)

@@ -1,4 +1,4 @@
-"""Runs the MJX-Warp calls of several scenes side by side, each scene on its own CUDA stream.
+"""Runs the MJX-Warp calls of several scenes as one FFI call, each scene on its own CUDA stream.
 
 XLA runs a program's FFI calls one after another on one stream, and a scene's MJX-Warp step is a
 chain of small kernels that fills a GPU only at tens of thousands of worlds: with one call per
@@ -10,25 +10,22 @@ find no stream inside a loop body.
 `concurrently(fns, args)` traces each function (one scene's vmapped `mjx.step` or
 `mjx.kinematics`) to a jaxpr, then evaluates the jaxprs side by side in the caller's trace,
 inlining the calls that hold Warp calls (MJX-Warp's `custom_vmap`, jits), until each reaches a Warp
-call. That round of calls becomes two FFI calls per scene, to mwjax's own target:
+call; those calls become one FFI call that takes all their operands and returns all their outputs,
+and the evaluation goes on to the next round of Warp calls or the end.
 
-- a *launch* with the Warp call's operands and outputs (and aliases), which on a GPU captures the
-  call into a CUDA graph on the scene's own stream, as Warp's "warp" graph mode does on XLA's
-  stream (keyed by the addresses of the call's buffers, up to `_GRAPHS_PER_SCENE` per call), and
-  replays it there after the work XLA's stream has queued, and returns at once;
-- a *join*, which makes XLA's stream wait for the scene's stream. It takes the launch's outputs
-  (aliased through, so that everything that reads them comes after it), the call's read-only
-  inputs (so that XLA does not reuse their memory while the scene's stream reads them), and
-  every launch's token output (so that all of the round's launches are issued before any join
-  waits: the graphs run side by side).
+At run time the callback, on a GPU, captures each scene's Warp call into a CUDA graph on that
+scene's own stream, as Warp's "warp" graph mode does on XLA's stream (keyed by the addresses of the
+call's buffers, up to `_GRAPHS_PER_SCENE` per call and scene), and replays the graphs side by
+side: every scene stream waits for XLA's stream, and XLA's stream waits for every scene stream
+before the call returns. On the CPU it runs the scenes' Warp calls one after another, as the
+separate calls would (a check of the plumbing). `PhysicsConfig.concurrent_scenes` selects this; by
+default an env on one GPU uses it (`physics.runs_scenes_together`).
 
-The evaluation then goes on to the next round of Warp calls or the end. (One FFI call for a whole
-round would do the same with fewer host calls, but XLA's compile time grows faster than linearly
-with the aliased operands of one call: MT10's step compiled ~8x slower; docs/performance.md.)
-On the CPU a launch runs its scene's Warp call to the end and a join does nothing, so a rollout is
-bit for bit that of one Warp call per scene. `PhysicsConfig.concurrent_scenes` selects this; by
-default an env on one GPU uses it (`physics.runs_scenes_together`; docs/performance.md has the
-measurements).
+One call per round costs compile time: XLA's passes grow faster than linearly with one call's
+aliased operands (MT50's step compiles ~80 s longer on an H200). Two calls per scene instead (a
+launch that returns at once and a join that makes XLA's stream wait, tied by tokens) compiled as
+fast as separate calls, but failed on the GPU with illegal memory accesses, cause not found
+(docs/performance.md has both measurements).
 """
 
 from __future__ import annotations
@@ -69,16 +66,16 @@ class _Call:
 
 @dataclasses.dataclass
 class _Site:
-    """One scene's part of a round: its Warp call, launched on the scene's stream (`call` set), or
-    the wait for it on XLA's stream (`call` None). `slot` is the scene's place in the round (its
-    stream and event); `inputs`/`outputs` count the Warp call's buffers."""
+    """One combined call: its Warp calls in order, each with its range of operands and outputs."""
 
-    call: tuple[ffi.FfiCallable, int] | None
-    slot: int
-    inputs: int = 0
-    outputs: int = 0
-    # The call's captured graphs by buffer addresses, least recently used first.
-    graphs: collections.OrderedDict = dataclasses.field(default_factory=collections.OrderedDict)
+    calls: list[tuple[ffi.FfiCallable, int]]
+    inputs: list[tuple[int, int]]
+    outputs: list[tuple[int, int]]
+    # Per call, its captured graphs by buffer addresses, least recently used first.
+    graphs: list[collections.OrderedDict] = dataclasses.field(init=False)
+
+    def __post_init__(self) -> None:
+        self.graphs = [collections.OrderedDict() for _ in self.calls]
 
 
 _lock = threading.Lock()
@@ -88,8 +85,8 @@ _callables: dict[str, ffi.FfiCallable] = {}
 
 def concurrently(fns: Sequence[Callable[[Any], Any]], args: Sequence[Any]) -> list[Any]:
     """`[fn(arg) for fn, arg in zip(fns, args)]`, with the Warp calls the functions make issued
-    together: each round of calls (every function's first, then every second, ...) launched on
-    the scenes' streams, then joined (see the module's docstring). Warp calls inside loops or
+    together: each round of calls (every function's first, then every second, ...) as one FFI
+    call that runs them side by side (see the module's docstring). Warp calls inside loops or
     conditionals of a function are not supported (an error says so)."""
     _register_target()
     runs, trees = [], []
@@ -101,7 +98,7 @@ def concurrently(fns: Sequence[Callable[[Any], Any]], args: Sequence[Any]) -> li
     pending = {i: _next_call(run, None, results, i) for i, run in enumerate(runs)}
     while pending := {i: call for i, call in pending.items() if call is not None}:
         order = sorted(pending)
-        outputs = _issue_round([pending[i] for i in order])
+        outputs = _combined_call([pending[i] for i in order])
         pending = {i: _next_call(runs[i], out, results, i) for i, out in zip(order, outputs, strict=True)}
     return [jax.tree.unflatten(tree, leaves) for tree, leaves in zip(trees, results, strict=True)]
 
@@ -190,47 +187,28 @@ def _warp_call(eqn: Any, operands: list[Any]) -> _Call:
     return _Call(_warp_callable(params["target_name"]), int(call_id), operands, out_types, aliases)
 
 
-def _issue_round(calls: list[_Call]) -> list[list[Any]]:
-    """One round: a launch per scene, then a join per scene (see the module's docstring)."""
-    token = jax.ShapeDtypeStruct((), np.int32)
-    launched, tokens = [], []
-    for slot, call in enumerate(calls):
-        site = _site(
-            call, slot, _Site((call.callable, call.call_id), slot, len(call.operands), len(call.out_types))
-        )
-        flat = jax.ffi.ffi_call(_TARGET, [*call.out_types, token], input_output_aliases=call.aliases)(
-            *call.operands, site=np.int64(site)
-        )
-        launched.append(flat[:-1])
-        tokens.append(flat[-1])
-    joined = []
-    for slot, (call, outputs) in enumerate(zip(calls, launched, strict=True)):
-        # The join takes the launch's outputs (aliased through: their consumers wait for it), the
-        # inputs the call does not write (XLA may not reuse their memory while the scene's stream
-        # reads them) and every launch's token (all launches are issued before any join waits).
-        read_only = [
-            x for i, x in enumerate(call.operands) if i not in call.aliases and isinstance(x, jax.Array)
-        ]
-        site = _site(call, slot, _Site(None, slot))
-        aliases = {i: i for i in range(len(outputs))}
-        joined.append(
-            list(
-                jax.ffi.ffi_call(_TARGET, call.out_types, input_output_aliases=aliases)(
-                    *outputs, *read_only, *tokens, site=np.int64(site)
-                )
-            )
-        )
-    return joined
-
-
-def _site(call: _Call, slot: int, site: _Site) -> int:
-    """`site`'s id, registered. Named after its Warp call, whose id is stable across processes
-    (`mwjax.warp_call_ids`), so that the program stays in JAX's persistent cache."""
-    described = repr((call.callable.name, call.call_id, slot, site.call is None))
-    key = int.from_bytes(hashlib.blake2b(described.encode(), digest_size=8).digest(), "little") >> 1
+def _combined_call(calls: list[_Call]) -> list[list[Any]]:
+    operands: list[Any] = []
+    out_types: list[jax.ShapeDtypeStruct] = []
+    aliases: dict[int, int] = {}
+    inputs, outputs = [], []
+    for call in calls:
+        aliases.update({len(operands) + i: len(out_types) + o for i, o in call.aliases.items()})
+        inputs.append((len(operands), len(operands) + len(call.operands)))
+        outputs.append((len(out_types), len(out_types) + len(call.out_types)))
+        operands.extend(call.operands)
+        out_types.extend(call.out_types)
+    # The site's id names its Warp calls, whose own ids are stable across processes
+    # (`mwjax.warp_call_ids`), so that the program stays in JAX's persistent cache.
+    described = repr([(call.callable.name, call.call_id) for call in calls])
+    site = int.from_bytes(hashlib.blake2b(described.encode(), digest_size=8).digest(), "little") >> 1
     with _lock:
-        _sites.setdefault(key, site)
-    return key
+        if site not in _sites:
+            _sites[site] = _Site([(call.callable, call.call_id) for call in calls], inputs, outputs)
+    flat = jax.ffi.ffi_call(_TARGET, out_types, input_output_aliases=aliases, has_side_effect=False)(
+        *operands, site=np.int64(site)
+    )
+    return [list(flat[a:b]) for a, b in outputs]
 
 
 def _register_target() -> None:
@@ -249,15 +227,11 @@ def _callback(call_frame: Any, is_gpu: bool) -> Any:
         site = _sites[ctypes.cast(attr.value, ctypes.POINTER(ctypes.c_int64)).contents.value]
         inputs = ctypes.cast(frame.args.args, ctypes.c_void_p).value
         outputs = ctypes.cast(frame.rets.rets, ctypes.c_void_p).value
-        if site.call is None:  # a join: on the CPU the launch ran the call to its end
-            if is_gpu:
-                _join(site, frame)
-            return None
         with ffi._FFI_CALLBACK_LOCK:
             if is_gpu:
                 _run_on_streams(site, frame, inputs, outputs)
             else:
-                _run(site, inputs, outputs)
+                _run_in_order(site, inputs, outputs)
     except Exception as error:  # noqa: BLE001 - reported to XLA, which raises it in Python
         return xla_ffi.create_ffi_error(
             call_frame.contents.api,
@@ -275,17 +249,17 @@ def _buffers(base: int, start: int, stop: int) -> Any:
     return (_BUFFER_PTR * (stop - start)).from_address(base + start * ctypes.sizeof(ctypes.c_void_p))
 
 
-def _arguments(site: _Site, inputs: int, outputs: int, device: wp.Device) -> list[Any]:
-    callable_, call_id = site.call
-    args, outs = _buffers(inputs, 0, site.inputs), _buffers(outputs, 0, site.outputs)
-    return callable_._build_arg_list(args, outs, callable_.call_descriptors[call_id], device)
+def _arguments(call: tuple[ffi.FfiCallable, int], inputs: Any, outputs: Any, device: wp.Device) -> list[Any]:
+    callable_, call_id = call
+    return callable_._build_arg_list(inputs, outputs, callable_.call_descriptors[call_id], device)
 
 
-def _run(site: _Site, inputs: int, outputs: int) -> None:
+def _run_in_order(site: _Site, inputs: int, outputs: int) -> None:
     device = wp.get_device("cpu")
-    args = _arguments(site, inputs, outputs, device)
-    with wp.ScopedDevice(device):
-        site.call[0].func(*args)
+    for call, (i0, i1), (o0, o1) in zip(site.calls, site.inputs, site.outputs, strict=True):
+        args = _arguments(call, _buffers(inputs, i0, i1), _buffers(outputs, o0, o1), device)
+        with wp.ScopedDevice(device):
+            call[0].func(*args)
 
 
 _DATA_OFFSET = xla_ffi.XLA_FFI_Buffer.data.offset
@@ -329,45 +303,37 @@ _streams: dict[int, _Streams] = {}
 
 
 def _run_on_streams(site: _Site, frame: Any, inputs: int, outputs: int) -> None:
-    """Launches the site's call on its scene's stream, after the work XLA's stream has queued."""
     core = wp._src.context.runtime.core
     xla_stream = xla_ffi.get_stream_from_callframe(frame)
-    device, own = _device_streams(frame)
-    stream = own.get(site.slot + 1)[site.slot]
-    in_ptrs, out_ptrs = _data_pointers(inputs, site.inputs), _data_pointers(outputs, site.outputs)
-    key = (device.ordinal, in_ptrs.tobytes(), out_ptrs.tobytes())
-    core.wp_cuda_event_record(own.start.cuda_event, xla_stream, False)
-    core.wp_cuda_stream_wait_event(stream.cuda_stream, own.start.cuda_event, False)
-    capture = site.graphs.get(key)
-    if capture is None:
-        args = _arguments(site, inputs, outputs, device)
-        ffi._load_ffi_module(wp.get_module(site.call[0].func.__module__), device)
-        with wp.ScopedDevice(device), wp.ScopedStream(stream, sync_enter=False):
-            with wp.ScopedCapture(stream=stream) as capture:
-                site.call[0].func(*args)
-        wp.capture_launch(capture.graph, stream=stream)
-        site.graphs[key] = capture
-        if len(site.graphs) > _GRAPHS_PER_SCENE:
-            site.graphs.popitem(last=False)
-    else:
-        site.graphs.move_to_end(key)
-        if not core.wp_cuda_graph_launch(capture.graph.graph_exec, stream.cuda_stream):
-            raise RuntimeError(f"graph launch failed: {wp._src.context.runtime.get_error_string()}")
-    core.wp_cuda_event_record(own.done[site.slot].cuda_event, stream.cuda_stream, False)
-
-
-def _join(site: _Site, frame: Any) -> None:
-    """XLA's stream waits for the work queued on the site's scene stream so far."""
-    core = wp._src.context.runtime.core
-    _, own = _device_streams(frame)
-    own.get(site.slot + 1)
-    core.wp_cuda_stream_wait_event(
-        xla_ffi.get_stream_from_callframe(frame), own.done[site.slot].cuda_event, False
-    )
-
-
-def _device_streams(frame: Any) -> tuple[wp.Device, _Streams]:
     ordinal = xla_ffi.get_device_ordinal_from_callframe(frame)
+    device = wp.get_cuda_device(ordinal)
     if ordinal not in _streams:
-        _streams[ordinal] = _Streams(wp.get_cuda_device(ordinal))
-    return _streams[ordinal].device, _streams[ordinal]
+        _streams[ordinal] = _Streams(device)
+    own = _streams[ordinal]
+    streams = own.get(len(site.calls))
+    in_ptrs = _data_pointers(inputs, site.inputs[-1][1])
+    out_ptrs = _data_pointers(outputs, site.outputs[-1][1])
+    core.wp_cuda_event_record(own.start.cuda_event, xla_stream, False)
+    for k, (call, (i0, i1), (o0, o1)) in enumerate(zip(site.calls, site.inputs, site.outputs, strict=True)):
+        stream = streams[k]
+        key = (ordinal, in_ptrs[i0:i1].tobytes(), out_ptrs[o0:o1].tobytes())
+        graphs = site.graphs[k]
+        capture = graphs.get(key)
+        core.wp_cuda_stream_wait_event(stream.cuda_stream, own.start.cuda_event, False)
+        if capture is None:
+            args = _arguments(call, _buffers(inputs, i0, i1), _buffers(outputs, o0, o1), device)
+            ffi._load_ffi_module(wp.get_module(call[0].func.__module__), device)
+            with wp.ScopedDevice(device), wp.ScopedStream(stream, sync_enter=False):
+                with wp.ScopedCapture(stream=stream) as capture:
+                    call[0].func(*args)
+            wp.capture_launch(capture.graph, stream=stream)
+            graphs[key] = capture
+            if len(graphs) > _GRAPHS_PER_SCENE:
+                graphs.popitem(last=False)
+        else:
+            graphs.move_to_end(key)
+            if not core.wp_cuda_graph_launch(capture.graph.graph_exec, stream.cuda_stream):
+                raise RuntimeError(f"graph launch failed: {wp._src.context.runtime.get_error_string()}")
+        core.wp_cuda_event_record(own.done[k].cuda_event, stream.cuda_stream, False)
+    for k in range(len(site.calls)):
+        core.wp_cuda_stream_wait_event(xla_stream, own.done[k].cuda_event, False)

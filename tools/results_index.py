@@ -115,7 +115,9 @@ def _what(files: list[Path], data: dict) -> str:
             )
         for ref in data.get("reference") or []:
             parts.append(
-                f"reference {ref['benchmark']} ({ref['num_envs']} envs): {ref['env_steps_per_s']:,.0f}"
+                f"reference {ref['benchmark']}: run failed"
+                if "error" in ref
+                else f"reference {ref['benchmark']} ({ref['num_envs']} envs): {ref['env_steps_per_s']:,.0f}"
             )
         timed = "timed after a warm-up rollout" if _warmed_up(data, rows) else "the first rollout timed"
         return f"env steps/s, {rows[0]['steps_per_rollout']}-step rollouts, {timed}: " + "; ".join(parts)

@@ -7,7 +7,7 @@ scenes' graphs not launched at all (`no_physics`: the state stands still; what t
 costs). After the timed rollouts, one more rollout records a CUDA event before and after every graph
 launch: the graphs' summed GPU time and the time at least one ran (their union) per env step,
 against the step's wall time, say whether the GPU idles (host-bound) and whether graphs overlap;
-the host's time inside Warp's FFI callbacks and mwjax's launches and joins, per env step, is timed too.
+the host's time inside Warp's FFI callbacks and mwjax's combined call, per env step, is timed too.
 
     XLA_PYTHON_CLIENT_MEM_FRACTION=0.45 python tools/scene_streams_probe.py --set MT10 --envs-per-task 64
 """
@@ -182,8 +182,7 @@ def main() -> None:
     rows = {}
     timeline = GraphTimeline()
     host = HostTimer()
-    scene_streams._run = host.wrap(scene_streams._run)  # the CPU's launches
-    scene_streams._join = host.wrap(scene_streams._join)
+    scene_streams._run_in_order = host.wrap(scene_streams._run_in_order)  # the CPU's combined call
     for variant in args.variants:
         scene_streams._streams.clear()
         getter = {"one_stream": one_stream, "nonblocking": nonblocking_streams}.get(variant, default_get)

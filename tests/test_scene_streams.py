@@ -6,8 +6,6 @@ rollout must equal the one with a call per scene bit for bit; the GPU's side-by-
 from __future__ import annotations
 
 import ctypes
-import importlib.util
-from pathlib import Path
 from typing import Any
 
 import jax
@@ -20,7 +18,6 @@ from mwjax import determinism, scene_streams
 from mwjax.benchmarks import task_names
 from mwjax.physics import runs_scenes_together
 
-ROOT = Path(__file__).parents[1]
 TASKS = ["pick-place-v3", "reach-v3"]
 
 
@@ -51,20 +48,36 @@ def test_together_steps_equal_separate_calls_through_an_autoreset(seeds: int | N
 
 
 @pytest.mark.gpu
-def test_together_stays_as_close_to_in_turn_as_in_turn_to_itself_on_the_gpu():
+@pytest.mark.parametrize("seeds", [None, 2], ids=["one-batch", "vmapped-seeds"])
+def test_together_stays_as_close_to_in_turn_as_in_turn_to_itself_on_the_gpu(seeds: int | None):
     """On a GPU, Warp's atomics make two in-turn rollouts differ in their last bits, and a rollout
     amplifies that; the together rollout must stay about as close to the first as the second one
-    does, with no env overflowing (`tools/scene_streams_check.py`'s comparison, smaller). A form
-    whose streams use buffers XLA has reused fails here: it crashes or departs far more."""
-    spec = importlib.util.spec_from_file_location("check", ROOT / "tools" / "scene_streams_check.py")
-    check = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(check)
-    tasks = task_names("MT10")
-    first, t_first = check.rollout(tasks, 8, 60, False)
-    second, _ = check.rollout(tasks, 8, 60, False)
-    together, t_together = check.rollout(tasks, 8, 60, True)
-    assert t_together["concurrent"] and not t_first["concurrent"]
-    assert t_first["overflow_envs"] == 0 and t_together["overflow_envs"] == 0
+    does, with no env overflowing (`tools/scene_streams_check.py`'s comparison, smaller; also under
+    the training examples' outer `vmap` of seeds). A form whose streams use buffers XLA has reused
+    fails here: it crashes or departs far more."""
+    steps = 60
+
+    def rollout(together: bool) -> np.ndarray:
+        physics = mwjax.PhysicsConfig(concurrent_scenes=together)
+        env = mwjax.make(task_names("MT10"), envs_per_task=8, seed=4, physics=physics, max_episode_steps=20)
+        assert env.physics.concurrent_scenes is together
+        reset, step = env.reset, env.step
+        keys = jax.random.key(0) if seeds is None else jax.random.split(jax.random.key(0), seeds)
+        if seeds is not None:
+            reset, step = jax.vmap(reset), jax.vmap(step)
+        shape = (steps, env.num_envs, 4) if seeds is None else (steps, seeds, env.num_envs, 4)
+        actions = jax.random.uniform(jax.random.key(1), shape, minval=-1, maxval=1)
+
+        def body(state: mwjax.State, action: jax.Array) -> tuple[mwjax.State, jax.Array]:
+            state = step(state, action)
+            overflow = (state.info["physics_overflow"] != 0)[..., None].astype(jnp.float32)
+            return state, jnp.concatenate([state.obs, state.reward[..., None], overflow], axis=-1)
+
+        state = jax.jit(reset)(keys)
+        return np.asarray(jax.jit(lambda s, a: jax.lax.scan(body, s, a)[1])(state, actions))
+
+    first, second, together = rollout(False), rollout(False), rollout(True)
+    assert not first[..., -1].any() and not together[..., -1].any()  # no env overflowed
     assert np.isfinite(together).all()
     assert np.abs(together - first).max() <= 10 * max(np.abs(second - first).max(), 1e-4)
 

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import os
 import warnings
 from collections.abc import Callable, Sequence
 from typing import Any, Literal
@@ -197,13 +198,21 @@ class PhysicsConfig:
             raise ValueError(f"concurrent_scenes must be True, False or None, not {self.concurrent_scenes!r}")
 
 
+# Set to "0": `concurrent_scenes=None` resolves to off (`runs_scenes_together`).
+CONCURRENT_SCENES_VARIABLE = "MWJAX_CONCURRENT_SCENES"
+
+
 def runs_scenes_together(config: PhysicsConfig, platform: str, devices: int = 1) -> bool:
     """Whether an env step with `config`, on `devices` devices of `platform`, issues its scenes'
     Warp calls together (`PhysicsConfig.concurrent_scenes`; None resolved here). The default is
     on only where it was measured: one GPU, Warp capturing the graphs itself. Several GPUs are
-    not measured yet; on the CPU the call would run the scenes in turn, as separate calls do."""
+    not measured yet; on the CPU the call would run the scenes in turn, as separate calls do.
+    `MWJAX_CONCURRENT_SCENES=0` turns the default off everywhere (no code change needed to run a
+    program's scenes in turn)."""
     if config.concurrent_scenes is not None:
         return config.concurrent_scenes
+    if os.environ.get(CONCURRENT_SCENES_VARIABLE, "1") == "0":
+        return False
     return platform == "gpu" and devices == 1 and _warp_captures_graphs(config)
 
 

@@ -158,6 +158,13 @@ def test_scenes_run_together_by_default_on_one_gpu_with_warps_own_graphs(config,
     assert runs_scenes_together(physics, platform, devices) is together
 
 
+@pytest.mark.parametrize(("value", "together"), [("0", False), ("1", True)])
+def test_the_environment_variable_turns_the_default_off(monkeypatch, value, together):
+    monkeypatch.setenv("MWJAX_CONCURRENT_SCENES", value)
+    assert runs_scenes_together(mwjax.PhysicsConfig(), "gpu") is together
+    assert runs_scenes_together(mwjax.PhysicsConfig(concurrent_scenes=True), "gpu")  # asked for: as asked
+
+
 def test_the_deterministic_mode_runs_the_scenes_in_turn(monkeypatch):
     monkeypatch.setattr(determinism, "enabled", lambda: True)
     assert not runs_scenes_together(mwjax.PhysicsConfig(), "gpu")

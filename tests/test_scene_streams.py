@@ -21,20 +21,25 @@ from mwjax.physics import runs_scenes_together
 TASKS = ["pick-place-v3", "reach-v3"]
 
 
+def _seeded(env: mwjax.Env, seeds: int | None) -> tuple[Any, Any, jax.Array, tuple[int, ...]]:
+    """`env`'s reset and step, its reset keys and the batch shape of an action: one batch, or
+    `seeds` instances under an outer `vmap` (the training examples' seeds)."""
+    if seeds is None:
+        return env.reset, env.step, jax.random.key(0), (env.num_envs,)
+    keys = jax.random.split(jax.random.key(0), seeds)
+    return jax.vmap(env.reset), jax.vmap(env.step), keys, (seeds, env.num_envs)
+
+
 @pytest.mark.skipif(jax.default_backend() != "cpu", reason="bit-for-bit equality holds on the CPU")
 @pytest.mark.parametrize("seeds", [None, 2], ids=["one-batch", "vmapped-seeds"])
 def test_together_steps_equal_separate_calls_through_an_autoreset(seeds: int | None):
     """Also under an outer `vmap` (the training examples' seeds), whose rows the physics merges."""
-    shape = (4, 2 * 2, 4) if seeds is None else (4, seeds, 2 * 2, 4)
-    actions = jax.random.uniform(jax.random.key(1), shape, minval=-1, maxval=1)
 
     def rollout(together: bool) -> list[np.ndarray]:
         physics = mwjax.PhysicsConfig(concurrent_scenes=together)
         env = mwjax.make(TASKS, envs_per_task=2, seed=4, physics=physics, max_episode_steps=2)
-        reset, step = env.reset, env.step
-        keys = jax.random.key(0) if seeds is None else jax.random.split(jax.random.key(0), seeds)
-        if seeds is not None:
-            reset, step = jax.vmap(reset), jax.vmap(step)
+        reset, step, keys, batch = _seeded(env, seeds)
+        actions = jax.random.uniform(jax.random.key(1), (4, *batch, 4), minval=-1, maxval=1)
         state, step = jax.jit(reset)(keys), jax.jit(step)
         out = [np.asarray(x) for x in (state.obs, *jax.tree.leaves(state.physics))]  # the reset's poses
         for action in actions:  # the episodes end at the second step and restart
@@ -61,12 +66,8 @@ def test_together_stays_as_close_to_in_turn_as_in_turn_to_itself_on_the_gpu(seed
         physics = mwjax.PhysicsConfig(concurrent_scenes=together)
         env = mwjax.make(task_names("MT10"), envs_per_task=8, seed=4, physics=physics, max_episode_steps=20)
         assert env.physics.concurrent_scenes is together
-        reset, step = env.reset, env.step
-        keys = jax.random.key(0) if seeds is None else jax.random.split(jax.random.key(0), seeds)
-        if seeds is not None:
-            reset, step = jax.vmap(reset), jax.vmap(step)
-        shape = (steps, env.num_envs, 4) if seeds is None else (steps, seeds, env.num_envs, 4)
-        actions = jax.random.uniform(jax.random.key(1), shape, minval=-1, maxval=1)
+        reset, step, keys, batch = _seeded(env, seeds)
+        actions = jax.random.uniform(jax.random.key(1), (steps, *batch, 4), minval=-1, maxval=1)
 
         def body(state: mwjax.State, action: jax.Array) -> tuple[mwjax.State, jax.Array]:
             state = step(state, action)

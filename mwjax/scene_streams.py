@@ -21,14 +21,11 @@ before the call returns. On the CPU it runs the scenes' Warp calls one after ano
 separate calls would (a check of the plumbing). `PhysicsConfig.concurrent_scenes` selects this; by
 default an env on one GPU uses it (`physics.runs_scenes_together`).
 
-The combined call declares no aliases, though MJX-Warp's calls update many buffers in place
-(168 in a step): XLA's compile grows faster than linearly with one call's aliased operands (ten
-times longer for MT10's step on the CPU). The callback instead copies each in-place input into its
-output buffer, inside the scene's graph on a GPU, and hands Warp the output buffer in the input's
-place (Warp works on an in-out argument through its input buffer). Two calls per scene (a launch
-that returns at once and a join that makes XLA's stream wait, tied by tokens) also compiled fast,
-but failed on the GPU with illegal memory accesses, cause not found (docs/performance.md has the
-measurements).
+One call per round costs compile time: XLA's passes grow faster than linearly with one call's
+aliased operands (the MT50 rollout compiled about twice as long on an H200). Two calls per scene (a
+launch that returns at once and a join that makes XLA's stream wait, tied by tokens) compiled as
+fast as separate calls, but failed on the GPU with illegal memory accesses, cause not found
+(docs/performance.md has both measurements).
 """
 
 from __future__ import annotations
@@ -74,8 +71,6 @@ class _Site:
     calls: list[tuple[ffi.FfiCallable, int]]
     inputs: list[tuple[int, int]]
     outputs: list[tuple[int, int]]
-    # Per call, the buffers it updates in place: (input index, output index, bytes).
-    copies: list[list[tuple[int, int, int]]]
     # Per call, its captured graphs by buffer addresses, least recently used first.
     graphs: list[collections.OrderedDict] = dataclasses.field(init=False)
 
@@ -195,8 +190,10 @@ def _warp_call(eqn: Any, operands: list[Any]) -> _Call:
 def _combined_call(calls: list[_Call]) -> list[list[Any]]:
     operands: list[Any] = []
     out_types: list[jax.ShapeDtypeStruct] = []
+    aliases: dict[int, int] = {}
     inputs, outputs = [], []
     for call in calls:
+        aliases.update({len(operands) + i: len(out_types) + o for i, o in call.aliases.items()})
         inputs.append((len(operands), len(operands) + len(call.operands)))
         outputs.append((len(out_types), len(out_types) + len(call.out_types)))
         operands.extend(call.operands)
@@ -207,18 +204,11 @@ def _combined_call(calls: list[_Call]) -> list[list[Any]]:
     site = int.from_bytes(hashlib.blake2b(described.encode(), digest_size=8).digest(), "little") >> 1
     with _lock:
         if site not in _sites:
-            copies = [_in_place(call) for call in calls]
-            _sites[site] = _Site([(call.callable, call.call_id) for call in calls], inputs, outputs, copies)
-    flat = jax.ffi.ffi_call(_TARGET, out_types, input_output_aliases={}, has_side_effect=False)(
+            _sites[site] = _Site([(call.callable, call.call_id) for call in calls], inputs, outputs)
+    flat = jax.ffi.ffi_call(_TARGET, out_types, input_output_aliases=aliases, has_side_effect=False)(
         *operands, site=np.int64(site)
     )
     return [list(flat[a:b]) for a, b in outputs]
-
-
-def _in_place(call: _Call) -> list[tuple[int, int, int]]:
-    """The buffers `call` updates in place: (input index, output index, bytes)."""
-    sizes = [t.size * t.dtype.itemsize for t in call.out_types]
-    return [(i, o, sizes[o]) for i, o in call.aliases.items()]
 
 
 def _register_target() -> None:
@@ -264,21 +254,10 @@ def _arguments(call: tuple[ffi.FfiCallable, int], inputs: Any, outputs: Any, dev
     return callable_._build_arg_list(inputs, outputs, callable_.call_descriptors[call_id], device)
 
 
-def _redirected(ins: Any, outs: Any, copies: list[tuple[int, int, int]]) -> Any:
-    """The call's input descriptors with each in-place input replaced by its output's (Warp
-    works on an in-out argument through its input buffer)."""
-    to = {i: o for i, o, _ in copies}
-    return (_BUFFER_PTR * len(ins))(*[outs[to[i]] if i in to else ins[i] for i in range(len(ins))])
-
-
 def _run_in_order(site: _Site, inputs: int, outputs: int) -> None:
     device = wp.get_device("cpu")
-    for k, (call, (i0, i1), (o0, o1)) in enumerate(zip(site.calls, site.inputs, site.outputs, strict=True)):
-        ins, outs = _buffers(inputs, i0, i1), _buffers(outputs, o0, o1)
-        for i, o, nbytes in site.copies[k]:
-            if nbytes:
-                ctypes.memmove(outs[o].contents.data, ins[i].contents.data, nbytes)
-        args = _arguments(call, _redirected(ins, outs, site.copies[k]), outs, device)
+    for call, (i0, i1), (o0, o1) in zip(site.calls, site.inputs, site.outputs, strict=True):
+        args = _arguments(call, _buffers(inputs, i0, i1), _buffers(outputs, o0, o1), device)
         with wp.ScopedDevice(device):
             call[0].func(*args)
 
@@ -323,18 +302,6 @@ class _Streams:
 _streams: dict[int, _Streams] = {}
 
 
-def _copy_in_place(
-    copies: list[tuple[int, int, int]], ins: np.ndarray, outs: np.ndarray, stream: wp.Stream
-) -> None:
-    """Copies, on `stream`, each in-place input of a call into its output buffer."""
-    core = wp._src.context.runtime.core
-    for i, o, nbytes in copies:
-        if nbytes and not core.wp_memcpy_d2d(
-            stream.device.context, int(outs[o]), int(ins[i]), nbytes, stream.cuda_stream
-        ):
-            raise RuntimeError("copying an in-place input into its output failed")
-
-
 def _run_on_streams(site: _Site, frame: Any, inputs: int, outputs: int) -> None:
     core = wp._src.context.runtime.core
     xla_stream = xla_ffi.get_stream_from_callframe(frame)
@@ -354,12 +321,10 @@ def _run_on_streams(site: _Site, frame: Any, inputs: int, outputs: int) -> None:
         capture = graphs.get(key)
         core.wp_cuda_stream_wait_event(stream.cuda_stream, own.start.cuda_event, False)
         if capture is None:
-            ins, outs = _buffers(inputs, i0, i1), _buffers(outputs, o0, o1)
-            args = _arguments(call, _redirected(ins, outs, site.copies[k]), outs, device)
+            args = _arguments(call, _buffers(inputs, i0, i1), _buffers(outputs, o0, o1), device)
             ffi._load_ffi_module(wp.get_module(call[0].func.__module__), device)
             with wp.ScopedDevice(device), wp.ScopedStream(stream, sync_enter=False):
                 with wp.ScopedCapture(stream=stream) as capture:
-                    _copy_in_place(site.copies[k], in_ptrs[i0:i1], out_ptrs[o0:o1], stream)
                     call[0].func(*args)
             wp.capture_launch(capture.graph, stream=stream)
             graphs[key] = capture

@@ -8,6 +8,10 @@ arrays of features Meta-World's scenes lack: tendons, flexes, sensors, ...) incl
 trace (`jnp.zeros`), an empty array is an operation of the body rather than a constant, and the
 map gets no zero-size input. JAX 0.10 compiles either form.
 
+Each trace makes one empty array per shape and dtype and hands it to every call that needs one:
+made per use, an MT10 step's trace held 3,116 of them, a fifth of its operations, each one traced
+and lowered.
+
 `install()` does it for the model's static NumPy fields, which MJX-Warp hands to Warp's FFI
 callable as they are (patching `FfiCallable.__call__`); `traced(model)` does it for the model's
 array leaves, which Warp gets through MJX's own marshalling; the env's state carries no empty
@@ -16,12 +20,19 @@ arrays (`mwjax.physics.PhysicsState`).
 
 from __future__ import annotations
 
+import weakref
 from typing import Any
 
 import jax
 import jax.numpy as jnp
 import numpy as np
+from jax._src import core
 from warp._src.jax import ffi
+
+# Per trace, the empty arrays made in it, by shape and dtype.
+_made: weakref.WeakKeyDictionary[Any, dict[tuple[tuple[int, ...], np.dtype], jax.Array]] = (
+    weakref.WeakKeyDictionary()
+)
 
 
 def install() -> None:
@@ -43,6 +54,13 @@ def traced(model: Any) -> Any:
 
 
 def _traced(x: Any) -> Any:
-    if isinstance(x, np.ndarray | jax.Array) and not isinstance(x, jax.core.Tracer) and x.size == 0:
+    if not (isinstance(x, np.ndarray | jax.Array) and not isinstance(x, jax.core.Tracer) and x.size == 0):
+        return x
+    trace = core.trace_ctx.trace
+    if isinstance(trace, core.EvalTrace):  # not tracing: nothing to share
         return jnp.zeros(x.shape, x.dtype)
-    return x
+    made = _made.setdefault(trace, {})
+    key = (x.shape, np.dtype(x.dtype))
+    if key not in made:
+        made[key] = jnp.zeros(x.shape, x.dtype)
+    return made[key]

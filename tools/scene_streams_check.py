@@ -5,7 +5,8 @@ Runs one seeded random-action rollout three times in this process: scenes in tur
 then together. On the CPU all three must agree bit for bit. On a GPU, Warp's atomics make even two
 runs in turn differ in the last bits, and a rollout amplifies that; the together run must stay as
 close to the first as the second in-turn run does. Prints per-step maximum observation
-differences and a JSON row (`--out`).
+differences, the tasks whose envs differ most (which scenes a fault touches) and a JSON row
+(`--out`).
 
     XLA_PYTHON_CLIENT_MEM_FRACTION=0.45 python tools/scene_streams_check.py --set MT50 \\
         --envs-per-task 64 --steps 200
@@ -29,7 +30,9 @@ import mwjax  # noqa: E402
 from benchmarks.common import add_set_argument, provenance, tasks_arg  # noqa: E402
 
 
-def rollout(tasks: object, envs_per_task: int, steps: int, concurrent: bool) -> tuple[np.ndarray, dict]:
+def rollout(
+    tasks: object, envs_per_task: int, steps: int, concurrent: bool
+) -> tuple[np.ndarray, dict, list[str]]:
     env = mwjax.make(
         tasks,
         envs_per_task=envs_per_task,
@@ -57,7 +60,8 @@ def rollout(tasks: object, envs_per_task: int, steps: int, concurrent: bool) -> 
     timing = {"compile_s": compile_s, "first_run_s": first_s, "second_run_s": again_s}
     timing["concurrent"] = env.physics.config.concurrent_scenes
     timing["overflow_envs"] = int((np.asarray(overflow) != 0).any(axis=0).sum())
-    return np.concatenate([np.asarray(obs), np.asarray(reward)[..., None]], axis=-1), timing
+    trajectory = np.concatenate([np.asarray(obs), np.asarray(reward)[..., None]], axis=-1)
+    return trajectory, timing, list(env.task_list)
 
 
 def main() -> None:
@@ -68,12 +72,18 @@ def main() -> None:
     parser.add_argument("--out", default=None, help="JSON path")
     args = parser.parse_args()
     tasks = tasks_arg(args.set)
-    first, t_first = rollout(tasks, args.envs_per_task, args.steps, False)
-    second, t_second = rollout(tasks, args.envs_per_task, args.steps, False)
-    together, t_together = rollout(tasks, args.envs_per_task, args.steps, True)
+    first, t_first, names = rollout(tasks, args.envs_per_task, args.steps, False)
+    second, t_second, _ = rollout(tasks, args.envs_per_task, args.steps, False)
+    together, t_together, _ = rollout(tasks, args.envs_per_task, args.steps, True)
 
     def per_step(other: np.ndarray) -> list[float]:
         return np.abs(other - first).reshape(args.steps, -1).max(axis=1).tolist()
+
+    def per_task(other: np.ndarray) -> dict[str, float]:
+        """Over the rollout, the largest difference in each task's envs (batch order is task by
+        task): which scenes a fault touches."""
+        diff = np.abs(other - first).reshape(args.steps, len(names), args.envs_per_task, -1)
+        return dict(zip(names, diff.max(axis=(0, 2, 3)).tolist(), strict=True))
 
     row = {
         "set": args.set,
@@ -81,6 +91,8 @@ def main() -> None:
         "steps": args.steps,
         "in_turn_again_max_diff": per_step(second),
         "together_max_diff": per_step(together),
+        "in_turn_again_max_diff_per_task": per_task(second),
+        "together_max_diff_per_task": per_task(together),
         "in_turn_again_identical": bool(np.array_equal(first, second)),
         "together_identical": bool(np.array_equal(first, together)),
         "timing": {"in_turn": t_first, "in_turn_again": t_second, "together": t_together},
@@ -92,7 +104,9 @@ def main() -> None:
             f"together {row['together_max_diff'][step]:.3g}",
             flush=True,
         )
-    print(json.dumps({k: v for k, v in row.items() if not k.endswith("max_diff")}), flush=True)
+    worst = sorted(row["together_max_diff_per_task"].items(), key=lambda item: -item[1])[:5]
+    print("tasks furthest apart together: " + ", ".join(f"{t} {d:.3g}" for t, d in worst), flush=True)
+    print(json.dumps({k: v for k, v in row.items() if "max_diff" not in k}), flush=True)
     if args.out:
         Path(args.out).parent.mkdir(parents=True, exist_ok=True)
         Path(args.out).write_text(json.dumps(row, indent=1) + "\n")

@@ -20,7 +20,7 @@ arrays (`mwjax.physics.PhysicsState`).
 
 from __future__ import annotations
 
-import weakref
+import threading
 from typing import Any
 
 import jax
@@ -29,10 +29,10 @@ import numpy as np
 from jax._src import core
 from warp._src.jax import ffi
 
-# Per trace, the empty arrays made in it, by shape and dtype.
-_made: weakref.WeakKeyDictionary[Any, dict[tuple[tuple[int, ...], np.dtype], jax.Array]] = (
-    weakref.WeakKeyDictionary()
-)
+# Per thread, for each open trace (by id), the trace and the empty arrays made in it by shape and
+# dtype. Entries of traces no longer open are dropped at the next use: the arrays refer to their
+# trace, so a weak mapping would keep every trace alive.
+_local = threading.local()
 
 
 def install() -> None:
@@ -59,8 +59,20 @@ def _traced(x: Any) -> Any:
     trace = core.trace_ctx.trace
     if isinstance(trace, core.EvalTrace):  # not tracing: nothing to share
         return jnp.zeros(x.shape, x.dtype)
-    made = _made.setdefault(trace, {})
+    made = _made_in(trace)
     key = (x.shape, np.dtype(x.dtype))
     if key not in made:
         made[key] = jnp.zeros(x.shape, x.dtype)
     return made[key]
+
+
+def _made_in(trace: core.Trace) -> dict[tuple[tuple[int, ...], np.dtype], jax.Array]:
+    """The empty arrays made so far in `trace` (the current one), after dropping the entries of
+    traces no longer open."""
+    open_ids, outer = set(), trace
+    while outer is not None and not isinstance(outer, core.EvalTrace):
+        open_ids.add(id(outer))
+        outer = getattr(outer, "parent_trace", None)
+    made = {k: v for k, v in getattr(_local, "made", {}).items() if k in open_ids}
+    _local.made = made
+    return made.setdefault(id(trace), (trace, {}))[1]

@@ -3,9 +3,13 @@ dtype in each trace."""
 
 from __future__ import annotations
 
+import gc
+import weakref
+
 import jax
 import jax.numpy as jnp
 import numpy as np
+from jax._src import core
 
 from mwjax import warp_empty_args
 
@@ -48,3 +52,18 @@ def test_another_trace_makes_its_own():
 def test_outside_a_trace_it_is_an_array():
     made = warp_empty_args._traced(np.zeros((0, 4), np.int32))
     assert isinstance(made, jax.Array) and made.shape == (0, 4) and made.dtype == jnp.int32
+
+
+def test_a_finished_trace_is_let_go():
+    """The arrays refer to their trace: kept past the trace's end they would keep it (and its
+    whole program) alive."""
+    traces = []
+
+    def uses(x):
+        traces.append(weakref.ref(core.trace_ctx.trace))
+        return x + warp_empty_args._traced(np.zeros((0, 2), np.float32)).sum()
+
+    for _ in range(3):
+        jax.jit(lambda x: uses(x)).lower(1.0)
+    gc.collect()
+    assert [ref() is None for ref in traces] == [True, True, False]  # the last, until the next

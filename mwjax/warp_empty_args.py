@@ -29,6 +29,8 @@ import numpy as np
 from jax._src import core
 from warp._src.jax import ffi
 
+from mwjax import warp_call_ids
+
 # Per thread, for each open trace (by id), the trace and the empty arrays made in it by shape and
 # dtype. Entries of traces no longer open are dropped at the next use: the arrays refer to their
 # trace, so a weak mapping would keep every trace alive.
@@ -56,23 +58,20 @@ def traced(model: Any) -> Any:
 def _traced(x: Any) -> Any:
     if not (isinstance(x, np.ndarray | jax.Array) and not isinstance(x, jax.core.Tracer) and x.size == 0):
         return x
-    trace = core.trace_ctx.trace
-    if isinstance(trace, core.EvalTrace):  # not tracing: nothing to share
+    chain = warp_call_ids.trace_chain()
+    if not chain:  # not tracing: nothing to share
         return jnp.zeros(x.shape, x.dtype)
-    made = _made_in(trace)
+    made = _made_in(chain)
     key = (x.shape, np.dtype(x.dtype))
     if key not in made:
         made[key] = jnp.zeros(x.shape, x.dtype)
     return made[key]
 
 
-def _made_in(trace: core.Trace) -> dict[tuple[tuple[int, ...], np.dtype], jax.Array]:
-    """The empty arrays made so far in `trace` (the current one), after dropping the entries of
-    traces no longer open."""
-    open_ids, outer = set(), trace
-    while outer is not None and not isinstance(outer, core.EvalTrace):
-        open_ids.add(id(outer))
-        outer = getattr(outer, "parent_trace", None)
+def _made_in(chain: list[core.Trace]) -> dict[tuple[tuple[int, ...], np.dtype], jax.Array]:
+    """The empty arrays made so far in the innermost of the open traces `chain`, after dropping
+    the entries of traces no longer open."""
+    open_ids = {id(trace) for trace in chain}
     made = {k: v for k, v in getattr(_local, "made", {}).items() if k in open_ids}
     _local.made = made
-    return made.setdefault(id(trace), (trace, {}))[1]
+    return made.setdefault(id(chain[0]), (chain[0], {}))[1]

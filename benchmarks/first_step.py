@@ -68,12 +68,44 @@ class CacheEvents:
         return {**self.counts, "read_s": round(self.read_s, 2)}
 
 
+def explain_cache_keys() -> None:
+    """Print JAX's debug lines on its cache keys: the hash of each part (the program, XLA flags,
+    compile options, ...), and each hit or miss with its key."""
+    import logging
+
+    handler = logging.StreamHandler()
+    handler.setFormatter(logging.Formatter("jax-cache: %(message)s"))
+    for name in ("jax._src.cache_key", "jax._src.compiler"):
+        logger = logging.getLogger(name)
+        logger.setLevel(logging.DEBUG)
+        logger.addHandler(handler)
+
+
+def write_program(path: Path, lowered: Any) -> float:
+    """The lowered program's text (without locations) at `path`, to diff with another process's;
+    returns the seconds this took, which the total leaves out."""
+    start = time.perf_counter()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(lowered.as_text(debug_info=False))
+    return time.perf_counter() - start
+
+
 def main(argv: list[str] | None = None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     add_set_argument(parser, default="MT50")
     parser.add_argument("--envs-per-task", type=int, default=1024)
     parser.add_argument("--out", type=Path, default=None, help="the result JSON (default: results/compile/)")
+    parser.add_argument(
+        "--explain-cache",
+        type=Path,
+        default=None,
+        metavar="DIR",
+        help="log the hash of each part of JAX's cache keys and write the lowered reset and step to DIR,"
+        " to compare two processes whose cache should have hit",
+    )
     args = parser.parse_args(argv)
+    if args.explain_cache:
+        explain_cache_keys()
     import jax
     import jax.numpy as jnp
     import numpy as np
@@ -85,21 +117,26 @@ def main(argv: list[str] | None = None) -> dict:
 
     phases: dict[str, float] = {}
     start = time.perf_counter()
+    writing = 0.0  # seconds spent writing programs for --explain-cache
     try:
         env = timed(phases, "make", lambda: mwjax.make(tasks_arg(args.set), envs_per_task=args.envs_per_task))
     except ValueError as error:  # a batch that is not a positive int (`set_arg` checked the set)
         parser.error(str(error))
     key = jax.random.key(0)
     reset = timed(phases, "reset_lower", lambda: jax.jit(env.reset).lower(key))
+    if args.explain_cache:
+        writing += write_program(args.explain_cache / "reset.mlir", reset)
     with CacheEvents() as reset_cache:
         reset = timed(phases, "reset_compile", reset.compile)
     state = timed(phases, "reset_run", lambda: jax.block_until_ready(reset(key)))
     actions = jnp.zeros((env.num_envs, 4))
     step = timed(phases, "step_lower", lambda: jax.jit(env.step).lower(state, actions))
+    if args.explain_cache:
+        writing += write_program(args.explain_cache / "step.mlir", step)
     with CacheEvents() as step_cache:
         step = timed(phases, "step_compile", step.compile)
     state = timed(phases, "step_run", lambda: jax.block_until_ready(step(state, actions)))
-    total = time.perf_counter() - start
+    total = time.perf_counter() - start - writing
     builds = progress.kernel_builds()
     result = {
         **provenance(),

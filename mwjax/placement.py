@@ -19,6 +19,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from mwjax import stored_results
 from mwjax.contracts import Frame, Kinematics, Placement
 from mwjax.physics import Physics, PhysicsState
 from mwjax.tasks.spec import TaskSpec
@@ -140,7 +141,7 @@ def with_settled_variants(
             settle = jax.jit(
                 lambda vs, g=g, parts=parts: _settle(physics, g, list(zip(parts, vs, strict=True)))
             )
-            _SETTLED_PER_VARIANT[key] = settle([jnp.asarray(v) for v in vecs])
+            _SETTLED_PER_VARIANT[key] = stored_results.run(settle, [jnp.asarray(v) for v in vecs])
         for i, settled in zip(members, _SETTLED_PER_VARIANT[key], strict=True):
             rows[i] = dataclasses.replace(rows[i], settled_per_variant=settled)
     return rows

@@ -1,0 +1,131 @@
+"""Results that `mwjax.make` computes on the device, kept on disk so that every later process
+uses the same bits.
+
+An env computes a few tables when it is made (the settled state of each goal variant of the
+tasks that settle per goal, `mwjax.placement`) and its reset and step carry them as constants.
+On a GPU, Warp's atomics make such a computation differ in the last bits from one process to
+the next, so every process traced programs with other constants: JAX's persistent cache
+missed for the MT50 step and reset in every process (their compile, ~70 s on an H200, ran
+each time), and two processes with the same seed started their episodes from different bits.
+
+`run(jitted, *args)` returns `jitted(*args)`, read from `$XDG_CACHE_HOME/mwjax/results`
+(`~/.cache/mwjax/results`) when the same computation ran before on the same kind of device. The
+key is the lowered program (everything the computation closes over, the model and the physics
+settings included), its arguments, the device kind and the versions of JAX, jaxlib, Warp and
+MuJoCo; a changed program or input is a new entry. `MWJAX_NO_CACHE=1` turns this off with JAX's
+cache (`mwjax.caches`).
+"""
+
+from __future__ import annotations
+
+import functools
+import hashlib
+import importlib.metadata
+import os
+import tempfile
+import threading
+from pathlib import Path
+from typing import Any
+
+import jax
+import jaxlib
+import mujoco
+import numpy as np
+import warp
+
+from mwjax import caches
+
+# Writes under way; the interpreter waits for them at exit (they are not daemon threads).
+_writes: list[threading.Thread] = []
+
+
+def directory() -> Path:
+    """Where the results are kept."""
+    return caches.user_cache_dir() / "results"
+
+
+def run(jitted: Any, *args: Any) -> Any:
+    """`jitted(*args)` (a `jax.jit` function), read from disk if this computation was stored;
+    otherwise computed, and stored once its result is ready (in a thread: this returns at once,
+    as the call would)."""
+    lowered = jitted.lower(*args)
+    if not caches.enabled():
+        return lowered.compile()(*args)
+    path = directory() / f"{_key(lowered, args)}.npz"
+    stored = _load(path, lowered)
+    if stored is not None:
+        return stored
+    result = lowered.compile()(*args)
+    write = threading.Thread(target=_store, args=(path, result), name="mwjax-store-result")
+    write.start()
+    _writes.append(write)
+    return result
+
+
+def wait() -> None:
+    """Return once every result computed so far is on disk."""
+    while _writes:
+        _writes.pop().join()
+
+
+def _key(lowered: Any, args: tuple[Any, ...]) -> str:
+    digest = hashlib.sha256()
+    digest.update(lowered.as_text(debug_info=False).encode())
+    for leaf in jax.tree.leaves(args):
+        value = np.asarray(leaf)
+        digest.update(f"{value.dtype}{value.shape}".encode())
+        digest.update(value.tobytes())
+    device = jax.devices()[0]
+    for part in (device.platform, device.device_kind, jax.__version__, jaxlib.__version__):
+        digest.update(part.encode())
+    digest.update(f"{warp.config.version}{mujoco.__version__}{_mjx_version()}".encode())
+    # Warp kernels are named, not spelled out, in the program: mwjax's own code is part of the key.
+    digest.update(_source_digest())
+    return digest.hexdigest()
+
+
+def _mjx_version() -> str:
+    try:
+        return importlib.metadata.version("mujoco-mjx")
+    except importlib.metadata.PackageNotFoundError:
+        return "unknown"
+
+
+@functools.cache
+def _source_digest() -> bytes:
+    """A digest of mwjax's Python sources as installed."""
+    digest = hashlib.sha256()
+    package = Path(__file__).parent
+    for path in sorted(package.rglob("*.py")):
+        digest.update(str(path.relative_to(package)).encode())
+        digest.update(path.read_bytes())
+    return digest.digest()
+
+
+def _load(path: Path, lowered: Any) -> Any | None:
+    """The stored result at `path` as the program's output tree, or None when there is none or
+    it does not have the program's output shapes (a damaged file is computed again)."""
+    try:
+        with np.load(path) as archive:
+            leaves = [archive[f"leaf{i}"] for i in range(len(archive.files))]
+    except (OSError, ValueError, KeyError):
+        return None
+    expected = jax.tree.leaves(lowered.out_info)
+    if len(leaves) != len(expected) or any(
+        leaf.shape != info.shape or leaf.dtype != info.dtype
+        for leaf, info in zip(leaves, expected, strict=True)
+    ):
+        return None
+    return jax.tree.unflatten(lowered.out_tree, [jax.numpy.asarray(leaf) for leaf in leaves])
+
+
+def _store(path: Path, result: Any) -> None:
+    """Write `result`'s leaves to `path` atomically (another process may write the same file)."""
+    leaves = [np.asarray(leaf) for leaf in jax.tree.leaves(result)]
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        with tempfile.NamedTemporaryFile(dir=path.parent, suffix=".npz", delete=False) as file:
+            np.savez(file, **{f"leaf{i}": leaf for i, leaf in enumerate(leaves)})
+        os.replace(file.name, path)
+    except OSError:  # a read-only or full disk: the next process computes it again
+        pass

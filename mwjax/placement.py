@@ -130,10 +130,12 @@ def with_settled_variants(
         if not members:
             continue
         vecs = [np.asarray(variants[rows[i].spec.name][:n_variants], np.float32) for i in members]
+        # The settling steps one scene alone (`Physics.step_group`), the same with the scenes
+        # side by side or not: envs of both kinds share the states.
         key = (
             group.scene,
             group.mocap_bodies,
-            physics.config,
+            dataclasses.replace(physics.config, concurrent_scenes=None),
             tuple((rows[i].spec.name, v.tobytes()) for i, v in zip(members, vecs, strict=True)),
         )
         if key not in _SETTLED_PER_VARIANT:

@@ -4,9 +4,12 @@ the same physics as with one call per scene?
 Runs one seeded random-action rollout three times in this process: scenes in turn, in turn again,
 then together. On the CPU all three must agree bit for bit. On a GPU, Warp's atomics make even two
 runs in turn differ in the last bits, and a rollout amplifies that; the together run must stay as
-close to the first as the second in-turn run does. Prints per-step maximum observation
-differences, the tasks whose envs differ most (which scenes a fault touches) and a JSON row
-(`--out`).
+close to the first as the second in-turn run does. The three envs start from the same per-goal
+settled states (`mwjax.placement` computes them once per process for both kinds of env): that
+settling amplifies tiny differences for a few tasks (peg-unplug-side most), and computed anew on
+a GPU it would start those envs elsewhere, a difference of the reset, not of the step. Prints
+per-step maximum observation differences, the tasks whose envs differ most (which scenes a fault
+touches) and a JSON row (`--out`).
 
     XLA_PYTHON_CLIENT_MEM_FRACTION=0.45 python tools/scene_streams_check.py --set MT50 \\
         --envs-per-task 64 --steps 200

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import importlib.util
 import json
+import logging
 from pathlib import Path
 
 import pytest
@@ -40,3 +41,28 @@ def test_bad_arguments_end_in_a_usage_error(first_step, tmp_path, usage_error):
     cases = [(["--set", "MT11"], "unknown benchmark 'MT11'"), (["--envs-per-task", "0"], "positive")]
     for argv, message in cases:
         assert message in usage_error(first_step.main, [*argv, "--out", str(tmp_path / "x.json")])
+
+
+@pytest.fixture
+def jax_loggers_restored():
+    """JAX's cache loggers as they were, after a test that turned their debug lines on."""
+    loggers = [logging.getLogger(name) for name in ("jax._src.cache_key", "jax._src.compiler")]
+    saved = [(logger.level, list(logger.handlers)) for logger in loggers]
+    yield
+    for logger, (level, handlers) in zip(loggers, saved, strict=True):
+        logger.setLevel(level)
+        logger.handlers[:] = handlers
+
+
+@pytest.mark.usefixtures("jax_loggers_restored")
+def test_explain_cache_logs_the_key_parts_and_writes_the_programs(first_step, tmp_path, capfd):
+    """`--explain-cache DIR`: the hash of each part of JAX's cache keys on stderr, and the lowered
+    reset and step in DIR, to compare with another process's (their writing is not timed)."""
+    programs = tmp_path / "programs"
+    argv = ["--set", "reach-v3", "--envs-per-task", "1", "--explain-cache", str(programs)]
+    result = first_step.main([*argv, "--out", str(tmp_path / "first-step.json")])
+    err = capfd.readouterr().err
+    assert "get_cache_key hash of serialized computation" in err and "'jit_step'" in err
+    for name in ("reset", "step"):
+        assert (programs / f"{name}.mlir").read_text().startswith("module @jit_")
+    assert result["make_to_first_step_s"] >= sum(result["phases_s"].values()) - 0.01 * len(result["phases_s"])

@@ -170,9 +170,11 @@ class PhysicsConfig:
     box_box_collider: str = "box_box"
     # Whether an env step runs its scenes' Warp calls side by side, each scene's CUDA graph on its
     # own stream (`mwjax.scene_streams`; on the CPU the scenes in turn, bit for bit the same).
-    # Faster on one GPU (2.5-2.9x per env step at small and mid-size batches on an H200), but
-    # checked against the scenes in turn there for MT10 only, not for MT50 (docs/performance.md):
-    # off unless asked for, here or by `MWJAX_CONCURRENT_SCENES=1` (`runs_scenes_together`).
+    # None: where it was measured faster (2.5-2.9x per env step on an H200) and checked against
+    # the scenes in turn for MT10 and MT50 (docs/performance.md), that is on one GPU with Warp
+    # capturing the graphs (`graph_mode` None or "warp", not under `mwjax.determinism`);
+    # elsewhere one call per scene (`runs_scenes_together`). The cost: XLA compiles the step
+    # about twice as long (cached after the first run).
     concurrent_scenes: bool | None = None
 
     def __post_init__(self) -> None:
@@ -198,19 +200,20 @@ class PhysicsConfig:
             raise ValueError(f"concurrent_scenes must be True, False or None, not {self.concurrent_scenes!r}")
 
 
-# Set to "1": `concurrent_scenes=None` resolves to on where it can run (`runs_scenes_together`).
+# Set to "0": `concurrent_scenes=None` resolves to off (`runs_scenes_together`).
 CONCURRENT_SCENES_VARIABLE = "MWJAX_CONCURRENT_SCENES"
 
 
 def runs_scenes_together(config: PhysicsConfig, platform: str, devices: int = 1) -> bool:
     """Whether an env step with `config`, on `devices` devices of `platform`, issues its scenes'
     Warp calls together (`PhysicsConfig.concurrent_scenes`; None resolved here). The default is
-    off; `MWJAX_CONCURRENT_SCENES=1` turns it on (no code change needed) where it was measured:
-    one GPU, Warp capturing the graphs itself. Several GPUs are not measured yet; on the CPU the
-    call would run the scenes in turn, as separate calls do."""
+    on only where it was measured: one GPU, Warp capturing the graphs itself. Several GPUs are
+    not measured yet; on the CPU the call would run the scenes in turn, as separate calls do.
+    `MWJAX_CONCURRENT_SCENES=0` turns the default off everywhere (no code change needed to run a
+    program's scenes in turn)."""
     if config.concurrent_scenes is not None:
         return config.concurrent_scenes
-    if os.environ.get(CONCURRENT_SCENES_VARIABLE) != "1":
+    if os.environ.get(CONCURRENT_SCENES_VARIABLE, "1") == "0":
         return False
     return platform == "gpu" and devices == 1 and _warp_captures_graphs(config)
 

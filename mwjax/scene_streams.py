@@ -18,9 +18,8 @@ scene's own stream, as Warp's "warp" graph mode does on XLA's stream (keyed by t
 call's buffers, up to `_GRAPHS_PER_SCENE` per call and scene), and replays the graphs side by
 side: every scene stream waits for XLA's stream, and XLA's stream waits for every scene stream
 before the call returns. On the CPU it runs the scenes' Warp calls one after another, as the
-separate calls would (a check of the plumbing). `PhysicsConfig.concurrent_scenes` selects this (off by
-default: checked against the scenes in turn on a GPU for MT10, not yet for MT50;
-`physics.runs_scenes_together`).
+separate calls would (a check of the plumbing). `PhysicsConfig.concurrent_scenes` selects this; by
+default an env on one GPU uses it (`physics.runs_scenes_together`).
 
 One call per round costs compile time: XLA's passes grow faster than linearly with one call's
 aliased operands (the MT50 rollout compiled about twice as long on an H200). Two calls per scene (a

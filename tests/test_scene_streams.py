@@ -159,52 +159,34 @@ def test_concurrent_scenes_takes_a_bool_or_none(value: object):
 @pytest.mark.parametrize(
     ("config", "platform", "devices", "together"),
     [
-        ({}, "gpu", 1, False),  # off by default: not checked against the scenes in turn for MT50
-        ({"graph_mode": "warp"}, "gpu", 1, False),
-        ({}, "cpu", 1, False),
-        ({"concurrent_scenes": True}, "cpu", 2, True),  # asked for: as asked
-        ({"concurrent_scenes": True}, "gpu", 1, True),
-    ],
-)
-def test_scenes_run_in_turn_unless_asked_for(monkeypatch, config, platform, devices, together):
-    monkeypatch.delenv("MWJAX_CONCURRENT_SCENES", raising=False)
-    physics = mwjax.PhysicsConfig(**config)
-    assert runs_scenes_together(physics, platform, devices) is together
-
-
-@pytest.mark.parametrize(
-    ("config", "platform", "devices", "together"),
-    [
-        ({}, "gpu", 1, True),  # where it was measured faster
+        ({}, "gpu", 1, True),  # the default where it was measured faster
         ({"graph_mode": "warp"}, "gpu", 1, True),
         ({}, "cpu", 1, False),  # the call would run the scenes in turn anyway
         ({}, "gpu", 2, False),  # not measured over several devices
         ({"graph_mode": "warp_staged_ex"}, "gpu", 1, False),  # the adapter's mode captures per call
         ({"graph_mode": "none"}, "gpu", 1, False),
-        ({"concurrent_scenes": False}, "gpu", 1, False),  # asked for: as asked
+        ({"concurrent_scenes": True}, "cpu", 2, True),  # asked for: as asked
+        ({"concurrent_scenes": False}, "gpu", 1, False),
     ],
 )
-def test_the_environment_variable_turns_the_default_on_where_it_was_measured(
-    monkeypatch, config, platform, devices, together
-):
-    monkeypatch.setenv("MWJAX_CONCURRENT_SCENES", "1")
-    assert runs_scenes_together(mwjax.PhysicsConfig(**config), platform, devices) is together
+def test_scenes_run_together_by_default_on_one_gpu_with_warps_own_graphs(config, platform, devices, together):
+    physics = mwjax.PhysicsConfig(**config)
+    assert runs_scenes_together(physics, platform, devices) is together
 
 
-@pytest.mark.parametrize("value", ["0", "true", ""])
-def test_only_1_turns_the_default_on(monkeypatch, value):
+@pytest.mark.parametrize(("value", "together"), [("0", False), ("1", True)])
+def test_the_environment_variable_turns_the_default_off(monkeypatch, value, together):
     monkeypatch.setenv("MWJAX_CONCURRENT_SCENES", value)
-    assert not runs_scenes_together(mwjax.PhysicsConfig(), "gpu")
+    assert runs_scenes_together(mwjax.PhysicsConfig(), "gpu") is together
+    assert runs_scenes_together(mwjax.PhysicsConfig(concurrent_scenes=True), "gpu")  # asked for: as asked
 
 
 def test_the_deterministic_mode_runs_the_scenes_in_turn(monkeypatch):
-    monkeypatch.setenv("MWJAX_CONCURRENT_SCENES", "1")
     monkeypatch.setattr(determinism, "enabled", lambda: True)
     assert not runs_scenes_together(mwjax.PhysicsConfig(), "gpu")
 
 
-def test_an_env_resolves_the_default_for_its_device(monkeypatch):
-    monkeypatch.setenv("MWJAX_CONCURRENT_SCENES", "1")
+def test_an_env_resolves_the_default_for_its_device():
     env = mwjax.make(["reach-v3"], envs_per_task=1)
     assert env.physics.concurrent_scenes == (jax.default_backend() == "gpu")
 

@@ -51,19 +51,12 @@ def throughput():
     ("together", "platform", "labels"),
     [
         (None, "gpu", []),
-        (False, "gpu", []),
-        (True, "gpu", ["concurrent_scenes=True"]),
+        (True, "gpu", []),  # what the default does on one GPU
+        (False, "gpu", ["concurrent_scenes=False"]),
         (None, "cpu", []),
         (True, "cpu", ["concurrent_scenes=True"]),
     ],
 )
-def test_scenes_side_by_side_are_labelled(throughput, monkeypatch, together, platform, labels):
-    monkeypatch.delenv("MWJAX_CONCURRENT_SCENES", raising=False)
+def test_scenes_side_by_side_are_labelled_by_what_the_device_runs(throughput, together, platform, labels):
     physics = mwjax.PhysicsConfig(concurrent_scenes=together)
     assert throughput.deviations(500, True, None, physics, platform) == labels
-
-
-def test_scenes_side_by_side_asked_for_by_the_environment_are_labelled(throughput, monkeypatch):
-    monkeypatch.setenv("MWJAX_CONCURRENT_SCENES", "1")
-    labels = throughput.deviations(500, True, None, mwjax.PhysicsConfig(), "gpu")
-    assert labels == ["concurrent_scenes=True"]

@@ -11,9 +11,9 @@ each time), and two processes with the same seed started their episodes from dif
 `run(jitted, *args)` returns `jitted(*args)`, read from `$XDG_CACHE_HOME/mwjax/results`
 (`~/.cache/mwjax/results`) when the same computation ran before on the same kind of device. The
 key is the lowered program (everything the computation closes over, the model and the physics
-settings included), its arguments, the device kind and the versions of JAX, jaxlib, Warp and
-MuJoCo; a changed program or input is a new entry. `MWJAX_NO_CACHE=1` turns this off with JAX's
-cache (`mwjax.caches`).
+settings included), its arguments, the device kind, the versions of JAX, jaxlib, Warp, MuJoCo and
+MJX, and mwjax's own sources; a changed program, input or version is a new entry.
+`MWJAX_NO_CACHE=1` turns this off with JAX's cache (`mwjax.caches`).
 """
 
 from __future__ import annotations
@@ -28,6 +28,7 @@ from pathlib import Path
 from typing import Any
 
 import jax
+import jax.numpy as jnp
 import jaxlib
 import mujoco
 import numpy as np
@@ -116,16 +117,19 @@ def _load(path: Path, lowered: Any) -> Any | None:
         for leaf, info in zip(leaves, expected, strict=True)
     ):
         return None
-    return jax.tree.unflatten(lowered.out_tree, [jax.numpy.asarray(leaf) for leaf in leaves])
+    return jax.tree.unflatten(lowered.out_tree, [jnp.asarray(leaf) for leaf in leaves])
 
 
 def _store(path: Path, result: Any) -> None:
     """Write `result`'s leaves to `path` atomically (another process may write the same file)."""
     leaves = [np.asarray(leaf) for leaf in jax.tree.leaves(result)]
+    partial: Path | None = None
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
-        with tempfile.NamedTemporaryFile(dir=path.parent, suffix=".npz", delete=False) as file:
+        with tempfile.NamedTemporaryFile(dir=path.parent, suffix=".tmp", delete=False) as file:
+            partial = Path(file.name)
             np.savez(file, **{f"leaf{i}": leaf for i, leaf in enumerate(leaves)})
-        os.replace(file.name, path)
+        os.replace(partial, path)
     except OSError:  # a read-only or full disk: the next process computes it again
-        pass
+        if partial is not None:
+            partial.unlink(missing_ok=True)

@@ -90,3 +90,14 @@ def test_an_env_reads_its_per_goal_settled_states_back(cache_home, monkeypatch):
     for got, want in zip(got_leaves, jax.tree.leaves(rows_first.settled_per_variant), strict=True):
         np.testing.assert_array_equal(np.asarray(got), np.asarray(want))
     assert len(_stored(cache_home)) == 1
+
+
+def test_a_cache_that_cannot_be_written_is_no_error(tmp_path, monkeypatch):
+    blocked = tmp_path / "not-a-directory"
+    blocked.write_text("")
+    monkeypatch.setenv("XDG_CACHE_HOME", str(blocked))
+    monkeypatch.delenv("MWJAX_NO_CACHE", raising=False)
+    x = jnp.arange(3.0)
+    np.testing.assert_array_equal(stored_results.run(_program(2.0), x)["b"][0], _program(2.0)(x)["b"][0])
+    stored_results.wait()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["not-a-directory"]

@@ -142,6 +142,7 @@ def main(argv: list[str] | None = None) -> dict:
         **provenance(),
         "set": args.set,
         "envs": env.num_envs,
+        "scenes_together": env.physics.concurrent_scenes,  # side by side (the default on one GPU)
         "phases_s": phases,
         "make_to_first_step_s": round(total, 2),
         "kernel_modules_built_in_this_process": builds.built,

@@ -294,8 +294,9 @@ def throughput(env: Any, steps: int, seed: int) -> Callable[[], None]:
         with progress.phase(label):
             state = staggered(jax.block_until_ready(reset(key)), env.max_episode_steps, key)
             timing = timed(lambda: jax.block_until_ready(compiled(state, key)), env.num_envs * steps)
+        scenes = "scenes side by side" if env.physics.concurrent_scenes else "scenes in turn"
         print(
-            f"throughput, random actions: {env.num_envs} envs ({len(env.task_list)} tasks), "
+            f"throughput, random actions: {env.num_envs} envs ({len(env.task_list)} tasks, {scenes}), "
             f"{steps}-step window of staggered episodes (autoreset inside): "
             f"{timing.steps_per_second:,.0f} env steps/s (timed run {timing.timed_run_s:.2f} s; "
             f"compile {compile_s:.1f} s and warm-up run {timing.first_run_s:.2f} s not counted)",

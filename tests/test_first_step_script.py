@@ -30,6 +30,7 @@ def test_the_wait_for_a_first_step_is_timed_phase_by_phase(first_step, tmp_path)
     assert list(phases) == names and all(seconds >= 0 for seconds in phases.values())
     assert result["make_to_first_step_s"] >= sum(phases.values()) - 0.01 * len(phases)  # rounding
     assert result["envs"] == 1 and result["overflow_envs"] == 0
+    assert result["scenes_together"] is False  # on the CPU the scenes run in turn
     assert result["device"] and result["command"].startswith("python") and result["commit"]
     # The step's compile (seconds on the CPU, over JAX's 1 s threshold) reads or writes JAX's cache.
     step = result["jax_cache"]["step"]

@@ -126,6 +126,8 @@ def test_the_kernels_compile_in_processes_while_xla_compiles(tmp_path):
     assert first("physics kernel modules compile in") < first("compiling the experts' rollout (XLA):")
     assert first("compiling the reset and the random-action rollout (XLA):") < first("waiting for the")
     assert first("waiting for the") < first("running the experts:") < first("throughput, random actions")
+    # The CPU runs the scenes in turn; the line says how they ran.
+    assert "(2 tasks, scenes in turn)" in lines[first("throughput, random actions")]
     pattern = r"Warp built (\d+) physics kernel modules? \((\d+) of them in parallel processes\)"
     total = re.search(pattern, lines[-1])
     assert total is not None, lines[-1]

@@ -51,7 +51,8 @@ def main() -> None:
         }
         change = rows[task.spec.name]
         worst = max(change.items(), key=lambda item: item[1])
-        print(f"{task.spec.name:24s} qpos {change['qpos']:.3g}, largest {worst[0]} {worst[1]:.3g}")
+        line = f"{task.spec.name:24s} qpos {change['qpos']:.3g}, largest {worst[0]} {worst[1]:.3g}"
+        print(line, flush=True)
     if args.out:
         row = {**provenance(), "variants": args.variants, "shift": args.shift, "max_change": rows}
         args.out.write_text(json.dumps(row, indent=2) + "\n")

@@ -17,6 +17,7 @@ import mwjax
 from mwjax import determinism, scene_streams
 from mwjax.benchmarks import task_names
 from mwjax.physics import runs_scenes_together
+from mwjax.tasks import TASKS as TASK_SPECS
 
 TASKS = ["pick-place-v3", "reach-v3"]
 
@@ -67,20 +68,18 @@ def test_envs_with_and_without_scenes_side_by_side_share_their_settled_states():
     assert together.settled_per_variant is in_turn.settled_per_variant
 
 
-@pytest.mark.gpu
-@pytest.mark.parametrize("seeds", [None, 2], ids=["one-batch", "vmapped-seeds"])
-def test_together_stays_as_close_to_in_turn_as_in_turn_to_itself_on_the_gpu(seeds: int | None):
-    """On a GPU, Warp's atomics make two in-turn rollouts differ in their last bits, and a rollout
-    amplifies that; the together rollout must stay about as close to the first as the second one
-    does, with no env overflowing (`tools/scene_streams_check.py`'s comparison, smaller; also under
-    the training examples' outer `vmap` of seeds). A form whose streams use buffers XLA has reused
-    fails here: it crashes or departs far more."""
-    steps = 60
+def _rollouts_in_turn_twice_then_together(
+    tasks: list[str], envs_per_task: int, seeds: int | None, steps: int = 60
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, tuple[str, ...]]:
+    """Seeded random-action rollouts through autoresets, `(steps, *batch, obs + reward +
+    overflow)`: scenes in turn, in turn again, then side by side; and the tasks in batch order."""
+    names: list[tuple[str, ...]] = []
 
     def rollout(together: bool) -> np.ndarray:
         physics = mwjax.PhysicsConfig(concurrent_scenes=together)
-        env = mwjax.make(task_names("MT10"), envs_per_task=8, seed=4, physics=physics, max_episode_steps=20)
+        env = mwjax.make(tasks, envs_per_task=envs_per_task, seed=4, physics=physics, max_episode_steps=20)
         assert env.physics.concurrent_scenes is together
+        names.append(env.task_list)
         reset, step, keys, batch = _seeded(env, seeds)
         actions = jax.random.uniform(jax.random.key(1), (steps, *batch, 4), minval=-1, maxval=1)
 
@@ -92,10 +91,40 @@ def test_together_stays_as_close_to_in_turn_as_in_turn_to_itself_on_the_gpu(seed
         state = jax.jit(reset)(keys)
         return np.asarray(jax.jit(lambda s, a: jax.lax.scan(body, s, a)[1])(state, actions))
 
-    first, second, together = rollout(False), rollout(False), rollout(True)
+    return rollout(False), rollout(False), rollout(True), names[0]
+
+
+@pytest.mark.gpu
+@pytest.mark.parametrize("seeds", [None, 2], ids=["one-batch", "vmapped-seeds"])
+def test_together_stays_as_close_to_in_turn_as_in_turn_to_itself_on_the_gpu(seeds: int | None):
+    """On a GPU, Warp's atomics make two in-turn rollouts differ in their last bits, and a rollout
+    amplifies that; the together rollout must stay about as close to the first as the second one
+    does, with no env overflowing (`tools/scene_streams_check.py`'s comparison, smaller; also under
+    the training examples' outer `vmap` of seeds). A form whose streams use buffers XLA has reused
+    fails here: it crashes or departs far more."""
+    first, second, together, _ = _rollouts_in_turn_twice_then_together(task_names("MT10"), 8, seeds)
     assert not first[..., -1].any() and not together[..., -1].any()  # no env overflowed
     assert np.isfinite(together).all()
     assert np.abs(together - first).max() <= 10 * max(np.abs(second - first).max(), 1e-4)
+
+
+@pytest.mark.gpu
+def test_together_follows_in_turn_task_by_task_for_the_tasks_that_settle_per_goal_on_the_gpu():
+    """The nine tasks whose settled reset state depends on the goal (chaotically for some), with
+    MT50 tasks that are not in MT10: each task's together rollout stays within 10x its own in-turn
+    noise (`tools/scene_streams_check.beyond_noise`'s rule), from shared settled states."""
+    settling = [name for name, spec in TASK_SPECS.items() if spec.settle_per_goal]
+    tasks = [*settling, "hammer-v3", "push-wall-v3", "coffee-pull-v3"]
+    envs_per_task = 8
+    first, second, together, order = _rollouts_in_turn_twice_then_together(tasks, envs_per_task, None)
+    assert not first[..., -1].any() and not together[..., -1].any()  # no env overflowed
+
+    def per_task(other: np.ndarray) -> np.ndarray:
+        return np.abs(other - first).reshape(len(first), len(order), envs_per_task, -1).max(axis=(0, 2, 3))
+
+    noise, apart = per_task(second), per_task(together)
+    beyond = [task for task, a, n in zip(order, apart, noise, strict=True) if a > 10 * max(n, 1e-4)]
+    assert not beyond, dict(zip(order, zip(apart.tolist(), noise.tolist(), strict=True), strict=True))
 
 
 def test_functions_without_warp_calls_run_as_they_are():

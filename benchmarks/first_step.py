@@ -8,7 +8,8 @@ Phases: `make` (on a GPU it first builds the scenes' Warp kernels in parallel wh
 lacks them, `mwjax.kernels.prebuild`), then for the reset and for one step of zero actions: tracing
 and lowering, XLA's compile (a read where JAX's persistent cache has the program) and the run.
 Run on a fresh machine (empty Warp and JAX caches) it is the cold first step, run again the warm
-one. Writes `results/compile/first-step-<set>-<commit>-<device>-<date>.json` (or `--out`).
+one. `--concurrent-scenes on|off` sets how the scenes run (default: side by side on one GPU).
+Writes `results/compile/first-step-<set>-<commit>-<device>-<date>.json` (or `--out`).
 """
 
 from __future__ import annotations
@@ -96,6 +97,12 @@ def main(argv: list[str] | None = None) -> dict:
     parser.add_argument("--envs-per-task", type=int, default=1024)
     parser.add_argument("--out", type=Path, default=None, help="the result JSON (default: results/compile/)")
     parser.add_argument(
+        "--concurrent-scenes",
+        choices=["on", "off"],
+        default=None,
+        help="PhysicsConfig.concurrent_scenes (default: on for one GPU, else off)",
+    )
+    parser.add_argument(
         "--explain-cache",
         type=Path,
         default=None,
@@ -115,11 +122,13 @@ def main(argv: list[str] | None = None) -> dict:
     from mwjax import progress
     from mwjax.physics import DROPPED
 
+    together = {"on": True, "off": False, None: None}[args.concurrent_scenes]
+    config = {"envs_per_task": args.envs_per_task, "physics": mwjax.PhysicsConfig(concurrent_scenes=together)}
     phases: dict[str, float] = {}
     start = time.perf_counter()
     writing = 0.0  # seconds spent writing programs for --explain-cache
     try:
-        env = timed(phases, "make", lambda: mwjax.make(tasks_arg(args.set), envs_per_task=args.envs_per_task))
+        env = timed(phases, "make", lambda: mwjax.make(tasks_arg(args.set), **config))
     except ValueError as error:  # a batch that is not a positive int (`set_arg` checked the set)
         parser.error(str(error))
     key = jax.random.key(0)

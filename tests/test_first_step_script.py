@@ -38,6 +38,13 @@ def test_the_wait_for_a_first_step_is_timed_phase_by_phase(first_step, tmp_path)
     assert step["read_s"] > 0 if step["hits"] else step["read_s"] == 0
 
 
+def test_the_scenes_run_as_asked(first_step, tmp_path):
+    """`--concurrent-scenes on` (on the CPU the one call runs the scenes in turn inside it)."""
+    argv = ["--set", "reach-v3", "--envs-per-task", "1", "--concurrent-scenes", "on"]
+    result = first_step.main([*argv, "--out", str(tmp_path / "first-step.json")])
+    assert result["scenes_together"] is True and result["overflow_envs"] == 0
+
+
 def test_bad_arguments_end_in_a_usage_error(first_step, tmp_path, usage_error):
     cases = [(["--set", "MT11"], "unknown benchmark 'MT11'"), (["--envs-per-task", "0"], "positive")]
     for argv, message in cases:

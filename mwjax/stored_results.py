@@ -13,11 +13,13 @@ each time), and two processes with the same seed started their episodes from dif
 key is the lowered program (everything the computation closes over, the model and the physics
 settings included), its arguments, the device kind, the versions of JAX, jaxlib, Warp, MuJoCo and
 MJX, and mwjax's own sources; a changed program, input or version is a new entry.
-`MWJAX_NO_CACHE=1` turns this off with JAX's cache (`mwjax.caches`).
+`MWJAX_NO_CACHE=1` turns this off with JAX's cache (`mwjax.caches`). Every edit of mwjax's sources
+makes new entries, so the directory keeps the most recently used ones up to `LIMIT_BYTES`.
 """
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import hashlib
 import importlib.metadata
@@ -38,6 +40,9 @@ from mwjax import caches
 
 # Writes under way; the interpreter waits for them at exit (they are not daemon threads).
 _writes: list[threading.Thread] = []
+# The directory's size kept after a write, least recently used entries removed first (MT50's
+# settled states take about 1 MB).
+LIMIT_BYTES = 256 * 2**20
 
 
 def directory() -> Path:
@@ -117,6 +122,8 @@ def _load(path: Path, lowered: Any) -> Any | None:
         for leaf, info in zip(leaves, expected, strict=True)
     ):
         return None
+    with contextlib.suppress(OSError):
+        os.utime(path)  # used now: the last to go when the directory is trimmed
     return jax.tree.unflatten(lowered.out_tree, [jnp.asarray(leaf) for leaf in leaves])
 
 
@@ -130,6 +137,22 @@ def _store(path: Path, result: Any) -> None:
             partial = Path(file.name)
             np.savez(file, **{f"leaf{i}": leaf for i, leaf in enumerate(leaves)})
         os.replace(partial, path)
+        _trim(path.parent)
     except OSError:  # a read-only or full disk: the next process computes it again
         if partial is not None:
             partial.unlink(missing_ok=True)
+
+
+def _trim(folder: Path) -> None:
+    """Remove the least recently used entries until the folder holds at most `LIMIT_BYTES`."""
+    entries = []
+    for entry in folder.glob("*.npz"):
+        with contextlib.suppress(OSError):  # another process may remove it meanwhile
+            stat = entry.stat()
+            entries.append((stat.st_mtime, stat.st_size, entry))
+    total = sum(size for _, size, _ in entries)
+    for _, size, entry in sorted(entries, key=lambda item: item[0]):
+        if total <= LIMIT_BYTES:
+            break
+        entry.unlink(missing_ok=True)
+        total -= size

@@ -4,6 +4,8 @@ persistent cache hits)."""
 
 from __future__ import annotations
 
+import os
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -101,3 +103,19 @@ def test_a_cache_that_cannot_be_written_is_no_error(tmp_path, monkeypatch):
     np.testing.assert_array_equal(stored_results.run(_program(2.0), x)["b"][0], _program(2.0)(x)["b"][0])
     stored_results.wait()
     assert sorted(p.name for p in tmp_path.iterdir()) == ["not-a-directory"]
+
+
+def test_the_least_recently_used_entries_go_when_the_directory_is_full(cache_home, monkeypatch):
+    x = jnp.arange(64.0)
+    stored_results.run(_program(1.0), x)
+    (oldest,) = _stored(cache_home)
+    stored_results.run(_program(2.0), x)
+    (second,) = set(_stored(cache_home)) - {oldest}
+    os.utime(oldest, (1, 1))
+    os.utime(second, (2, 2))
+    stored_results.run(_program(1.0), x)  # read back: used now
+    entry = oldest.stat().st_size
+    monkeypatch.setattr(stored_results, "LIMIT_BYTES", 2 * entry)
+    stored_results.run(_program(3.0), x)  # a third entry: the one least recently used goes
+    assert oldest in _stored(cache_home) and second not in _stored(cache_home)
+    assert len(_stored(cache_home)) == 2

@@ -4,7 +4,8 @@
   threshold) goes to `$XDG_CACHE_HOME/mwjax/jax` (`~/.cache/mwjax/jax`), unless a directory is
   already set (`JAX_COMPILATION_CACHE_DIR` or `jax.config`) or `MWJAX_NO_CACHE=1`.
 - Tables an env computes when it is made (`mwjax.stored_results`) go to
-  `$XDG_CACHE_HOME/mwjax/results`, unless `MWJAX_NO_CACHE=1`.
+  `$XDG_CACHE_HOME/mwjax/results` (the most recently used, up to 256 MB), unless
+  `MWJAX_NO_CACHE=1`.
 - Warp caches its kernel modules itself, in `~/.cache/warp` (or `WARP_CACHE_PATH`).
 
 Sharing a cache directory with users you do not trust lets them run code as you (JAX's warning).

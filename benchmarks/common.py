@@ -81,6 +81,24 @@ def add_set_argument(parser: argparse.ArgumentParser, default: str) -> None:
     )
 
 
+def add_concurrent_scenes_argument(parser: argparse.ArgumentParser) -> None:
+    """`--concurrent-scenes on|off`, read as `PhysicsConfig.concurrent_scenes` (absent: None,
+    the default, side by side on one GPU)."""
+    parser.add_argument(
+        "--concurrent-scenes",
+        type=_on_off,
+        metavar="{on,off}",
+        default=None,
+        help="PhysicsConfig.concurrent_scenes (default: on for one GPU, else off)",
+    )
+
+
+def _on_off(text: str) -> bool:
+    if text not in ("on", "off"):
+        raise argparse.ArgumentTypeError(f"expected on or off, not {text!r}")
+    return text == "on"
+
+
 def tasks_arg(text: str) -> str | list[str]:
     """A set as `mwjax.make` takes it (`mwjax.benchmarks.parse_tasks`)."""
     from mwjax.benchmarks import parse_tasks

@@ -21,7 +21,14 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from common import add_set_argument, commit, provenance, result_path, tasks_arg
+from common import (
+    add_concurrent_scenes_argument,
+    add_set_argument,
+    commit,
+    provenance,
+    result_path,
+    tasks_arg,
+)
 
 
 def timed(phases: dict[str, float], name: str, work: Callable[[], Any]) -> Any:
@@ -96,12 +103,7 @@ def main(argv: list[str] | None = None) -> dict:
     add_set_argument(parser, default="MT50")
     parser.add_argument("--envs-per-task", type=int, default=1024)
     parser.add_argument("--out", type=Path, default=None, help="the result JSON (default: results/compile/)")
-    parser.add_argument(
-        "--concurrent-scenes",
-        choices=["on", "off"],
-        default=None,
-        help="PhysicsConfig.concurrent_scenes (default: on for one GPU, else off)",
-    )
+    add_concurrent_scenes_argument(parser)
     parser.add_argument(
         "--explain-cache",
         type=Path,
@@ -122,8 +124,10 @@ def main(argv: list[str] | None = None) -> dict:
     from mwjax import progress
     from mwjax.physics import DROPPED
 
-    together = {"on": True, "off": False, None: None}[args.concurrent_scenes]
-    config = {"envs_per_task": args.envs_per_task, "physics": mwjax.PhysicsConfig(concurrent_scenes=together)}
+    config = {
+        "envs_per_task": args.envs_per_task,
+        "physics": mwjax.PhysicsConfig(concurrent_scenes=args.concurrent_scenes),
+    }
     phases: dict[str, float] = {}
     start = time.perf_counter()
     writing = 0.0  # seconds spent writing programs for --explain-cache

@@ -42,7 +42,15 @@ from pathlib import Path
 import jax
 import jax.numpy as jnp
 import numpy as np
-from common import build_kernels, provenance, result_path, rows_arg, set_arg, tasks_arg
+from common import (
+    add_concurrent_scenes_argument,
+    build_kernels,
+    provenance,
+    result_path,
+    rows_arg,
+    set_arg,
+    tasks_arg,
+)
 
 import mwjax
 from mwjax.benchmarks import task_names
@@ -313,12 +321,7 @@ def main() -> None:
     parser.add_argument("--constraints", type=rows_arg, default=None, help="constraints_per_env")
     parser.add_argument("--ccd-pairs", type=rows_arg, default=None, help="ccd_pairs_per_env")
     parser.add_argument("--graph-mode", default=None, help="PhysicsConfig.graph_mode")
-    parser.add_argument(
-        "--concurrent-scenes",
-        choices=["on", "off"],
-        default=None,
-        help="PhysicsConfig.concurrent_scenes (default: on for one GPU, else off)",
-    )
+    add_concurrent_scenes_argument(parser)
     parser.add_argument("--vs-reference", metavar="PYTHON", default=None, help="also time metaworld 3.1.1")
     parser.add_argument("--reference-steps", type=int, default=EPISODE)
     parser.add_argument("--adapter", action="store_true", help="also time the Gymnasium adapter")
@@ -342,7 +345,7 @@ def main() -> None:
         "constraints_per_env": args.constraints,
         "ccd_pairs_per_env": args.ccd_pairs,
         "graph_mode": args.graph_mode,
-        "concurrent_scenes": {"on": True, "off": False, None: None}[args.concurrent_scenes],
+        "concurrent_scenes": args.concurrent_scenes,
     }
     physics = mwjax.PhysicsConfig(**{k: v for k, v in settings.items() if v is not None})
 

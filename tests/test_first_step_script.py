@@ -46,7 +46,11 @@ def test_the_scenes_run_as_asked(first_step, tmp_path):
 
 
 def test_bad_arguments_end_in_a_usage_error(first_step, tmp_path, usage_error):
-    cases = [(["--set", "MT11"], "unknown benchmark 'MT11'"), (["--envs-per-task", "0"], "positive")]
+    cases = [
+        (["--set", "MT11"], "unknown benchmark 'MT11'"),
+        (["--envs-per-task", "0"], "positive"),
+        (["--concurrent-scenes", "maybe"], "expected on or off"),
+    ]
     for argv, message in cases:
         assert message in usage_error(first_step.main, [*argv, "--out", str(tmp_path / "x.json")])
 

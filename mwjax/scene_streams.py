@@ -22,7 +22,7 @@ separate calls would (a check of the plumbing). `PhysicsConfig.concurrent_scenes
 default an env on one GPU uses it (`physics.runs_scenes_together`).
 
 One call per round costs compile time: XLA's passes grow faster than linearly with one call's
-aliased operands (the MT50 rollout compiled about twice as long on an H200). Two calls per scene (a
+aliased operands (the MT50 step compiled 3.3 times as long on an H200). Two calls per scene (a
 launch that returns at once and a join that makes XLA's stream wait, tied by tokens) compiled as
 fast as separate calls, but failed on the GPU with illegal memory accesses, cause not found
 (docs/performance.md has both measurements).

@@ -173,8 +173,8 @@ class PhysicsConfig:
     # None: where it was measured faster (2.5-2.9x per env step on an H200) and checked against
     # the scenes in turn for MT10 and MT50 (docs/performance.md), that is on one GPU with Warp
     # capturing the graphs (`graph_mode` None or "warp", not under `mwjax.determinism`);
-    # elsewhere one call per scene (`runs_scenes_together`). The cost: XLA compiles the step two
-    # to three times as long (cached after the first run).
+    # elsewhere one call per scene (`runs_scenes_together`). The cost: XLA compiles the step 1.8
+    # to 3.3 times as long (cached after the first run).
     concurrent_scenes: bool | None = None
 
     def __post_init__(self) -> None:

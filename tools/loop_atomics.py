@@ -11,8 +11,9 @@ whether the mode covers it.
 A dry run of each scene's step (as `mwjax.kernels` lists modules: nothing runs or compiles) names
 the kernels launched. In their source (and the Warp functions they call, transitively), an atomic
 site is `wp.atomic_add/sub/min/max` or an augmented assignment to an element of an array
-argument; a loop is dynamic unless Warp unrolls it (`range` of constants, at most the module's
-`max_unroll` iterations, no `break`/`continue`; a `wp.static` bound always unrolls).
+argument; a loop is dynamic unless Warp unrolls it: a `range` of constants (a `wp.static` bound
+folds to one) of at most the module's `max_unroll` iterations without `break`/`continue`, or a loop
+holding a `wp.static` expression Warp could not fold at declaration.
 
     python tools/loop_atomics.py --set MT10 --out loop-atomics-MT10.json
 """

@@ -13,6 +13,8 @@ Sharing a cache directory with users you do not trust lets them run code as you 
 
 from __future__ import annotations
 
+import functools
+import hashlib
 import os
 from pathlib import Path
 
@@ -33,6 +35,18 @@ def jax_cache_dir() -> Path:
 def enabled() -> bool:
     """Whether mwjax's caches are on (`MWJAX_NO_CACHE` unset, empty or "0")."""
     return os.environ.get("MWJAX_NO_CACHE", "0") in ("", "0")
+
+
+@functools.cache
+def sources_digest() -> str:
+    """A digest of every file mwjax ships (its code and its scene files), for cache keys that must
+    change with any edit of them."""
+    package = Path(__file__).parent
+    digest = hashlib.sha256()
+    for path in sorted(p for p in package.rglob("*") if p.is_file() and "__pycache__" not in p.parts):
+        digest.update(str(path.relative_to(package)).encode())
+        digest.update(path.read_bytes())
+    return digest.hexdigest()
 
 
 def configure() -> None:

@@ -45,7 +45,7 @@ import mujoco
 import mujoco.mjx.third_party.mujoco_warp as mjwarp
 import warp
 
-from mwjax import benchmarks, determinism, placement, progress
+from mwjax import benchmarks, caches, determinism, placement, progress
 from mwjax.models import constraint_rows
 from mwjax.physics import PhysicsConfig, local_device, warp_model
 from mwjax.tasks import get_task
@@ -268,7 +268,7 @@ def scene_records(todo: Sequence[Scene], config: PhysicsConfig) -> list[Path] | 
     common = (
         # Whether the scenes run side by side selects no module.
         dataclasses.astuple(dataclasses.replace(config, concurrent_scenes=False)),
-        _sources_digest(),
+        caches.sources_digest(),
         warp.__version__,
         mujoco.__version__,
         str(warp.config.mode),
@@ -355,16 +355,6 @@ def _cache_lock(folder: Path) -> Iterator[None]:
             yield
         finally:
             fcntl.flock(lock, fcntl.LOCK_UN)
-
-
-@functools.cache
-def _sources_digest() -> str:
-    package = Path(__file__).parent
-    digest = hashlib.sha256()
-    for path in sorted(p for p in package.rglob("*") if p.is_file() and "__pycache__" not in p.parts):
-        digest.update(str(path.relative_to(package)).encode())
-        digest.update(path.read_bytes())
-    return digest.hexdigest()
 
 
 def _pool(workers: int) -> concurrent.futures.Executor:

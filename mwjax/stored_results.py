@@ -12,15 +12,14 @@ each time), and two processes with the same seed started their episodes from dif
 (`~/.cache/mwjax/results`) when the same computation ran before on the same kind of device. The
 key is the lowered program (everything the computation closes over, the model and the physics
 settings included), its arguments, the device kind, the versions of JAX, jaxlib, Warp, MuJoCo and
-MJX, and mwjax's own sources; a changed program, input or version is a new entry.
-`MWJAX_NO_CACHE=1` turns this off with JAX's cache (`mwjax.caches`). Every edit of mwjax's sources
+MJX, and mwjax's files (`caches.sources_digest`); a changed program, input or version is a new entry.
+`MWJAX_NO_CACHE=1` turns this off with JAX's cache (`mwjax.caches`). Every edit of mwjax's files
 makes new entries, so the directory keeps the most recently used ones up to `LIMIT_BYTES`.
 """
 
 from __future__ import annotations
 
 import contextlib
-import functools
 import hashlib
 import importlib.metadata
 import os
@@ -86,7 +85,7 @@ def _key(lowered: Any, args: tuple[Any, ...]) -> str:
         digest.update(part.encode())
     digest.update(f"{warp.config.version}{mujoco.__version__}{_mjx_version()}".encode())
     # Warp kernels are named, not spelled out, in the program: mwjax's own code is part of the key.
-    digest.update(_source_digest())
+    digest.update(caches.sources_digest().encode())
     return digest.hexdigest()
 
 
@@ -95,17 +94,6 @@ def _mjx_version() -> str:
         return importlib.metadata.version("mujoco-mjx")
     except importlib.metadata.PackageNotFoundError:
         return "unknown"
-
-
-@functools.cache
-def _source_digest() -> bytes:
-    """A digest of mwjax's Python sources as installed."""
-    digest = hashlib.sha256()
-    package = Path(__file__).parent
-    for path in sorted(package.rglob("*.py")):
-        digest.update(str(path.relative_to(package)).encode())
-        digest.update(path.read_bytes())
-    return digest.digest()
 
 
 def _load(path: Path, lowered: Any) -> Any | None:

@@ -2,19 +2,17 @@
 
 from __future__ import annotations
 
-import importlib.util
 import json
 from pathlib import Path
 
 import numpy as np
 import pytest
+from tool_scripts import load_tool
 
 from mwjax import stats
 
 ROOT = Path(__file__).resolve().parents[1]
-_spec = importlib.util.spec_from_file_location("compare_runs", ROOT / "tools" / "compare_runs.py")
-compare_runs = importlib.util.module_from_spec(_spec)
-_spec.loader.exec_module(compare_runs)
+compare_runs = load_tool("compare_runs")
 
 TRAIN = ROOT / "benchmarks" / "results" / "train"
 V1 = TRAIN / "train-MT10-ppo-v1-5-seeds-vmapped-7461e14-NVIDIA_H200-2026-11-26.json"

@@ -2,17 +2,12 @@
 
 from __future__ import annotations
 
-import importlib.util
-from pathlib import Path
-
 import numpy as np
+from tool_scripts import load_tool
 
 from mwjax.models import load_scene
 
-ROOT = Path(__file__).resolve().parents[1]
-_spec = importlib.util.spec_from_file_location("divergence_probe", ROOT / "tools" / "divergence_probe.py")
-probe = importlib.util.module_from_spec(_spec)
-_spec.loader.exec_module(probe)
+probe = load_tool("divergence_probe")
 
 
 def test_the_replay_reports_mujoco_cs_divergence_checks(tmp_path, monkeypatch):

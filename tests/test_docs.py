@@ -5,24 +5,17 @@ CI runs."""
 from __future__ import annotations
 
 import glob
-import importlib.util
 import itertools
 import re
 from pathlib import Path
 
 import pytest
+from tool_scripts import load_tool
 
 ROOT = Path(__file__).parents[1]
 DOCS = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
 RESULT_PATH = re.compile(r"benchmarks/results/[^\s`'\")\]]+")
 LINK = re.compile(r"\]\(([^)\s]+)\)")
-
-
-def _results_index():
-    spec = importlib.util.spec_from_file_location("results_index", ROOT / "tools" / "results_index.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
 
 
 def _expanded(pattern: str) -> list[str]:
@@ -33,7 +26,7 @@ def _expanded(pattern: str) -> list[str]:
 
 
 def test_results_index_is_current():
-    index = _results_index()
+    index = load_tool("results_index")
     assert index.INDEX.read_text() == index.index(), "run: python tools/results_index.py"
 
 

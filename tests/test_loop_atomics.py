@@ -2,20 +2,17 @@
 
 from __future__ import annotations
 
-import importlib.util
 import linecache
 from pathlib import Path
 
 import pytest
 import warp as wp
+from tool_scripts import load_tool
 
 import mwjax
 from mwjax import determinism, kernels
 
-ROOT = Path(__file__).resolve().parents[1]
-_spec = importlib.util.spec_from_file_location("loop_atomics", ROOT / "tools" / "loop_atomics.py")
-loop_atomics = importlib.util.module_from_spec(_spec)
-_spec.loader.exec_module(loop_atomics)
+loop_atomics = load_tool("loop_atomics")
 
 
 @pytest.fixture(scope="module")

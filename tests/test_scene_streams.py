@@ -6,14 +6,13 @@ rollout must equal the one with a call per scene bit for bit; the GPU's side-by-
 from __future__ import annotations
 
 import ctypes
-import importlib.util
-from pathlib import Path
 from typing import Any
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from tool_scripts import load_tool
 
 import mwjax
 from mwjax import determinism, scene_streams
@@ -68,14 +67,6 @@ def test_envs_with_and_without_scenes_side_by_side_share_their_settled_states():
     ]
     (in_turn,), (together,) = ([r for r in env._rows if r.spec.settle_per_goal] for env in made)
     assert together.settled_per_variant is in_turn.settled_per_variant
-
-
-def _load_tool(name: str) -> Any:
-    """A script of `tools/` as a module."""
-    spec = importlib.util.spec_from_file_location(name, Path(__file__).parents[1] / "tools" / f"{name}.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
 
 
 def _rollouts_in_turn_twice_then_together(
@@ -134,7 +125,7 @@ def test_together_follows_in_turn_task_by_task_for_the_tasks_that_settle_per_goa
         return dict(zip(order, diff.max(axis=(0, 2, 3)).tolist(), strict=True))
 
     noise, apart = per_task(second), per_task(together)
-    check = _load_tool("scene_streams_check")
+    check = load_tool("scene_streams_check")
     assert not check.beyond_noise(noise, apart), {task: (apart[task], noise[task]) for task in order}
 
 

@@ -2,17 +2,13 @@
 
 from __future__ import annotations
 
-import importlib.util
 import os
 import subprocess
 import sys
-from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
-TOOL = ROOT / "tools" / "scene_streams_compile.py"
-_spec = importlib.util.spec_from_file_location("scene_streams_compile", TOOL)
-scene_streams_compile = importlib.util.module_from_spec(_spec)
-_spec.loader.exec_module(scene_streams_compile)
+from tool_scripts import load_tool
+
+scene_streams_compile = load_tool("scene_streams_compile")
 
 # A program with an elementwise chain for XLA's fusion pass, compiled in a fresh process whose
 # XLA logs its passes (the log level is read when jaxlib loads).

@@ -107,17 +107,18 @@ def loop_kind(loop: ast.For | ast.While, scope: _Scope, max_unroll: int) -> str:
     """ "unrolled" where Warp unrolls the loop, else "dynamic"."""
     if isinstance(loop, ast.While):
         return "dynamic"
-    it = loop.iter
-    if _is_static(it) or not (isinstance(it, ast.Call) and _call_name(it) == "range"):
-        return "unrolled" if _is_static(it) else "dynamic"
-    if any(_is_static(arg) for arg in it.args) or any(_is_static(n) for n in ast.walk(loop)):
+    if any(_is_static(node) for node in ast.walk(loop)):
         return "unrolled"
-    values = [scope.constant(arg) for arg in it.args]
-    if any(v is None for v in values) or not values:
+    it = loop.iter
+    if not (isinstance(it, ast.Call) and _call_name(it) == "range"):
         return "dynamic"
-    start, stop, step = (0, values[0], 1) if len(values) == 1 else (*values[:2], (values[2:] or [1])[0])
-    breaks = any(isinstance(n, ast.Break | ast.Continue) for n in ast.walk(loop))
-    return "unrolled" if abs(stop - start) // abs(step) <= max_unroll and not breaks else "dynamic"
+    values = [scope.constant(arg) for arg in it.args]
+    if None in values:
+        return "dynamic"
+    bounds = range(*values)  # range(stop), range(start, stop) and range(start, stop, step) alike
+    iterations = abs(bounds.stop - bounds.start) // abs(bounds.step)  # Warp's count
+    breaks = any(isinstance(node, ast.Break | ast.Continue) for node in ast.walk(loop))
+    return "unrolled" if iterations <= max_unroll and not breaks else "dynamic"
 
 
 def _array_params(adj: Any) -> set[str]:
@@ -138,15 +139,21 @@ def _function_sites(function: Any, seen: set[int]) -> list[str]:
         if adj is None:
             continue
         scope = _Scope(adj.func, _array_params(adj))
-        for node, _ in _walk(adj.tree, scope, 1 << 30, ()):
-            site = _site(node, scope)
-            if site:
+        for node in ast.walk(adj.tree):
+            if site := _site(node, scope):
                 sites.append(f"{_where(adj, node)} {site}")
-            elif isinstance(node, ast.Call):
-                callee = scope.resolve(node.func)
-                if isinstance(callee, warp._src.context.Function) and not callee.is_builtin():
-                    sites += _function_sites(callee, seen)
+            elif callee := _user_function(node, scope):
+                sites += _function_sites(callee, seen)
     return sites
+
+
+def _user_function(node: ast.AST, scope: _Scope) -> Any | None:
+    """The Warp function (not a builtin) that `node` calls, if it is such a call."""
+    if not isinstance(node, ast.Call):
+        return None
+    callee = scope.resolve(node.func)
+    is_user = isinstance(callee, warp._src.context.Function) and not callee.is_builtin()
+    return callee if is_user else None
 
 
 def _walk(node: ast.AST, scope: _Scope, max_unroll: int, loops: tuple[str, ...]) -> Iterator[tuple]:
@@ -188,11 +195,9 @@ def loop_sites(kernel: Any) -> list[dict]:
             continue
         site = _site(node, scope)
         via: list[str] = []
-        if site is None and isinstance(node, ast.Call):
-            callee = scope.resolve(node.func)
-            if isinstance(callee, warp._src.context.Function) and not callee.is_builtin():
-                via = _function_sites(callee, set())
-                site = f"calls {callee.key}" if via else None
+        if site is None and (callee := _user_function(node, scope)):
+            via = _function_sites(callee, set())
+            site = f"calls {callee.key}" if via else None
         if site:
             rows.append({"at": _where(adj, node), "site": site, "loops": list(loops), "through": via})
     return rows

@@ -11,9 +11,10 @@ whether the mode covers it.
 A dry run of each scene's step (as `mwjax.kernels` lists modules: nothing runs or compiles) names
 the kernels launched. In their source (and the Warp functions they call, transitively), an atomic
 site is `wp.atomic_add/sub/min/max` or an augmented assignment to an element of an array
-argument; a loop is dynamic unless Warp unrolls it: a `range` of constants (a `wp.static` bound
-folds to one) of at most the module's `max_unroll` iterations without `break`/`continue`, or a loop
-holding a `wp.static` expression Warp could not fold at declaration.
+argument; a loop is dynamic unless Warp unrolls it (`Adjoint.get_unroll_range`): a `range` of
+constants (a `wp.static` bound folds to one) of at most the module's `max_unroll` iterations
+without `break`/`continue`, or of any length when its body holds a `wp.static` expression Warp
+could not fold at declaration.
 
     python tools/loop_atomics.py --set MT10 --out loop-atomics-MT10.json
 """
@@ -107,14 +108,14 @@ def loop_kind(loop: ast.For | ast.While, scope: _Scope, max_unroll: int) -> str:
     """ "unrolled" where Warp unrolls the loop, else "dynamic"."""
     if isinstance(loop, ast.While):
         return "dynamic"
-    if any(_is_static(node) for node in ast.walk(loop)):
-        return "unrolled"
     it = loop.iter
-    if not (isinstance(it, ast.Call) and _call_name(it) == "range"):
+    if not (isinstance(it, ast.Call) and isinstance(it.func, ast.Name) and it.func.id == "range"):
         return "dynamic"
     values = [scope.constant(arg) for arg in it.args]
-    if None in values:
+    if not 1 <= len(values) <= 3 or None in values:
         return "dynamic"
+    if any(_is_static(node) for node in ast.walk(loop)):
+        return "unrolled"  # Warp unrolls a constant range holding a wp.static it could not fold
     bounds = range(*values)  # range(stop), range(start, stop) and range(start, stop, step) alike
     iterations = abs(bounds.stop - bounds.start) // abs(bounds.step)  # Warp's count
     breaks = any(isinstance(node, ast.Break | ast.Continue) for node in ast.walk(loop))

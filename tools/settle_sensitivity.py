@@ -39,9 +39,7 @@ def main() -> None:
     names = [name for name, spec in TASKS.items() if spec.settle_per_goal]
     env = mwjax.make(names, envs_per_task=1, seed=0)
     rows: dict[str, dict[str, float]] = {}
-    for task in env._rows:
-        if not task.spec.settle_per_goal:
-            continue
+    for task in env._rows:  # the env holds only the tasks that settle per goal
         settle = jax.jit(lambda v, task=task: placement._settle(env.physics, task.group, [(task, v)])[0])
         goals = jnp.asarray(np.asarray(env.goal_variants[task.spec.name][: args.variants], np.float32))
         base, shifted = settle(goals), settle(goals + args.shift)

@@ -55,7 +55,7 @@ from common import (
 import mwjax
 from mwjax.benchmarks import task_names
 from mwjax.env import staggered
-from mwjax.physics import DROPPED, runs_scenes_together
+from mwjax.physics import DROPPED, runs_scenes_together, scenes_together_by_default
 from mwjax.wrappers.gymnasium import make_vector
 
 EPISODE = 500  # the reference's max_episode_steps, mwjax's default
@@ -86,7 +86,8 @@ def deviations(
     steps: int, warmup: bool, stagger: int | None, physics: mwjax.PhysicsConfig, platform: str
 ) -> list[str]:
     """How a measurement departs from the protocol (empty: it is the protocol). Scenes side by
-    side count by what `platform` runs: asking for what the default does there is no deviation."""
+    side count by what `platform` runs: asking for what the default does there is no deviation,
+    and `MWJAX_CONCURRENT_SCENES=0` turning the default off is one."""
     out = []
     if stagger is not None:
         out.append(f"staggered episodes, {stagger}-step window")
@@ -98,7 +99,7 @@ def deviations(
     for field in dataclasses.fields(defaults):
         if field.name == "concurrent_scenes":
             together = runs_scenes_together(physics, platform)
-            if together != runs_scenes_together(defaults, platform):
+            if together != scenes_together_by_default(defaults, platform):
                 out.append(f"concurrent_scenes={together}")
         elif getattr(physics, field.name) != getattr(defaults, field.name):
             out.append(f"{field.name}={getattr(physics, field.name)}")

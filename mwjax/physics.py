@@ -215,6 +215,12 @@ def runs_scenes_together(config: PhysicsConfig, platform: str, devices: int = 1)
         return config.concurrent_scenes
     if os.environ.get(CONCURRENT_SCENES_VARIABLE, "1") == "0":
         return False
+    return scenes_together_by_default(config, platform, devices)
+
+
+def scenes_together_by_default(config: PhysicsConfig, platform: str, devices: int = 1) -> bool:
+    """What `concurrent_scenes=None` resolves to where no setting or variable chose: on one GPU
+    whose CUDA graphs Warp captures itself."""
     return platform == "gpu" and devices == 1 and _warp_captures_graphs(config)
 
 

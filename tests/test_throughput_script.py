@@ -57,6 +57,15 @@ def throughput():
         (True, "cpu", ["concurrent_scenes=True"]),
     ],
 )
-def test_scenes_side_by_side_are_labelled_by_what_the_device_runs(throughput, together, platform, labels):
+def test_scenes_side_by_side_are_labelled_by_what_the_device_runs(
+    throughput, monkeypatch, together, platform, labels
+):
+    monkeypatch.delenv("MWJAX_CONCURRENT_SCENES", raising=False)
     physics = mwjax.PhysicsConfig(concurrent_scenes=together)
     assert throughput.deviations(500, True, None, physics, platform) == labels
+
+
+def test_scenes_in_turn_by_the_environment_are_labelled(throughput, monkeypatch):
+    monkeypatch.setenv("MWJAX_CONCURRENT_SCENES", "0")
+    labels = throughput.deviations(500, True, None, mwjax.PhysicsConfig(), "gpu")
+    assert labels == ["concurrent_scenes=False"]

@@ -23,6 +23,13 @@ from mwjax.tasks import TASKS as TASK_SPECS
 TASKS = ["pick-place-v3", "reach-v3"]
 
 
+@pytest.fixture(autouse=True)
+def _default_unset(monkeypatch):
+    """The tests see the shipped default, whatever the caller's `MWJAX_CONCURRENT_SCENES`; those
+    of the variable set it themselves."""
+    monkeypatch.delenv("MWJAX_CONCURRENT_SCENES", raising=False)
+
+
 def _seeded(env: mwjax.Env, seeds: int | None) -> tuple[Any, Any, jax.Array, tuple[int, ...]]:
     """`env`'s reset and step, its reset keys and the batch shape of an action: one batch, or
     `seeds` instances under an outer `vmap` (the training examples' seeds)."""
@@ -119,13 +126,9 @@ def test_together_follows_in_turn_task_by_task_for_the_tasks_that_settle_per_goa
     envs_per_task = 8
     first, second, together, order = _rollouts_in_turn_twice_then_together(tasks, envs_per_task, None)
     assert not first[..., -1].any() and not together[..., -1].any()  # no env overflowed
-
-    def per_task(other: np.ndarray) -> dict[str, float]:
-        diff = np.abs(other - first).reshape(len(first), len(order), envs_per_task, -1)
-        return dict(zip(order, diff.max(axis=(0, 2, 3)).tolist(), strict=True))
-
-    noise, apart = per_task(second), per_task(together)
     check = load_tool("scene_streams_check")
+    noise = check.max_diff_per_task(first, second, order, envs_per_task)
+    apart = check.max_diff_per_task(first, together, order, envs_per_task)
     assert not check.beyond_noise(noise, apart), {task: (apart[task], noise[task]) for task in order}
 
 

@@ -74,6 +74,15 @@ def rollout(
 NOISE_FACTOR, NOISE_FLOOR = 10.0, 1e-4
 
 
+def max_diff_per_task(
+    first: np.ndarray, other: np.ndarray, names: list[str], envs_per_task: int
+) -> dict[str, float]:
+    """Over two rollouts `(steps, envs, ...)`, the largest difference in each task's envs (batch
+    order is task by task): which scenes a fault touches."""
+    diff = np.abs(other - first).reshape(len(first), len(names), envs_per_task, -1)
+    return dict(zip(names, diff.max(axis=(0, 2, 3)).tolist(), strict=True))
+
+
 def beyond_noise(again: dict[str, float], together: dict[str, float]) -> list[str]:
     """The tasks whose together difference exceeds `NOISE_FACTOR` times their in-turn noise."""
     return [task for task, diff in together.items() if diff > NOISE_FACTOR * max(again[task], NOISE_FLOOR)]
@@ -94,13 +103,8 @@ def main() -> None:
     def per_step(other: np.ndarray) -> list[float]:
         return np.abs(other - first).reshape(args.steps, -1).max(axis=1).tolist()
 
-    def per_task(other: np.ndarray) -> dict[str, float]:
-        """Over the rollout, the largest difference in each task's envs (batch order is task by
-        task): which scenes a fault touches."""
-        diff = np.abs(other - first).reshape(args.steps, len(names), args.envs_per_task, -1)
-        return dict(zip(names, diff.max(axis=(0, 2, 3)).tolist(), strict=True))
-
-    again, apart = per_task(second), per_task(together)
+    again = max_diff_per_task(first, second, names, args.envs_per_task)
+    apart = max_diff_per_task(first, together, names, args.envs_per_task)
     beyond = beyond_noise(again, apart)
     overflow = any(timing["overflow_envs"] for timing in (t_first, t_second, t_together))
     row = {

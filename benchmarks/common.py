@@ -82,8 +82,9 @@ def add_set_argument(parser: argparse.ArgumentParser, default: str) -> None:
 
 
 def add_concurrent_scenes_argument(parser: argparse.ArgumentParser) -> None:
-    """`--concurrent-scenes on|off`, read as `PhysicsConfig.concurrent_scenes` (absent: None,
-    the default, side by side on one GPU)."""
+    """`--concurrent-scenes on|off` and `--scenes-per-call N`, read as
+    `PhysicsConfig.concurrent_scenes` (absent: None, the default, side by side on one GPU) and
+    `PhysicsConfig.scenes_per_call`."""
     parser.add_argument(
         "--concurrent-scenes",
         type=_on_off,
@@ -91,6 +92,19 @@ def add_concurrent_scenes_argument(parser: argparse.ArgumentParser) -> None:
         default=None,
         help="PhysicsConfig.concurrent_scenes (default: on for one GPU, else off)",
     )
+    parser.add_argument(
+        "--scenes-per-call",
+        type=_positive_int,
+        metavar="N",
+        default=None,
+        help="PhysicsConfig.scenes_per_call: at most N scenes per combined call (default: all)",
+    )
+
+
+def _positive_int(text: str) -> int:
+    if not text.isdigit() or int(text) < 1:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, not {text!r}")
+    return int(text)
 
 
 def _on_off(text: str) -> bool:

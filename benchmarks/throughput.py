@@ -347,6 +347,7 @@ def main() -> None:
         "ccd_pairs_per_env": args.ccd_pairs,
         "graph_mode": args.graph_mode,
         "concurrent_scenes": args.concurrent_scenes,
+        "scenes_per_call": args.scenes_per_call,
     }
     physics = mwjax.PhysicsConfig(**{k: v for k, v in settings.items() if v is not None})
 

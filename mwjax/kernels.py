@@ -266,8 +266,8 @@ def scene_records(todo: Sequence[Scene], config: PhysicsConfig) -> list[Path] | 
         return None
     device = warp.get_preferred_device()
     common = (
-        # Whether the scenes run side by side selects no module.
-        dataclasses.astuple(dataclasses.replace(config, concurrent_scenes=False)),
+        # Whether (and how many per call) the scenes run side by side selects no module.
+        dataclasses.astuple(dataclasses.replace(config, concurrent_scenes=False, scenes_per_call=None)),
         caches.sources_digest(),
         warp.__version__,
         mujoco.__version__,

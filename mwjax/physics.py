@@ -176,6 +176,12 @@ class PhysicsConfig:
     # elsewhere one call per scene (`runs_scenes_together`). The cost: XLA compiles the step 1.8
     # to 3.3 times as long (cached after the first run).
     concurrent_scenes: bool | None = None
+    # With the scenes side by side, at most this many scenes' Warp calls in one combined call; a
+    # round's calls (of near-equal size) then run one after another. XLA's compile time grows
+    # faster than linearly with one call's aliased operands, the overlap of scenes shrinks with
+    # smaller calls (docs/performance.md). None: every scene in one call. No effect on the
+    # physics: each scene's calls are the same.
+    scenes_per_call: int | None = None
 
     def __post_init__(self) -> None:
         for name in ("substeps", "contacts_per_env", "iterations", "ls_iterations"):
@@ -198,6 +204,9 @@ class PhysicsConfig:
         _graph_mode(self.graph_mode)
         if self.concurrent_scenes is not None and not isinstance(self.concurrent_scenes, bool):
             raise ValueError(f"concurrent_scenes must be True, False or None, not {self.concurrent_scenes!r}")
+        per_call = self.scenes_per_call
+        if per_call is not None and not (_is_int(per_call) and per_call >= 1):
+            raise ValueError(f"scenes_per_call must be a positive int or None, not {self.scenes_per_call!r}")
 
 
 # Set to "0": `concurrent_scenes=None` resolves to off (`runs_scenes_together`).
@@ -432,7 +441,8 @@ class Physics:
 
     def _step_all(self, states: tuple[PhysicsState, ...]) -> tuple[PhysicsState, ...]:
         """Every group stepped with fresh poses, the groups' Warp calls issued together."""
-        return self._step_rows(tuple(range(len(states))), states, True, scene_streams.concurrently)
+        issue = functools.partial(scene_streams.concurrently, per_call=self.config.scenes_per_call)
+        return self._step_rows(tuple(range(len(states))), states, True, issue)
 
     def _step_rows(
         self,

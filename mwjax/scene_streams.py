@@ -83,11 +83,14 @@ _sites: dict[int, _Site] = {}
 _callables: dict[str, ffi.FfiCallable] = {}
 
 
-def concurrently(fns: Sequence[Callable[[Any], Any]], args: Sequence[Any]) -> list[Any]:
+def concurrently(
+    fns: Sequence[Callable[[Any], Any]], args: Sequence[Any], per_call: int | None = None
+) -> list[Any]:
     """`[fn(arg) for fn, arg in zip(fns, args)]`, with the Warp calls the functions make issued
     together: each round of calls (every function's first, then every second, ...) as one FFI
-    call that runs them side by side (see the module's docstring). Warp calls inside loops or
-    conditionals of a function are not supported (an error says so)."""
+    call that runs them side by side (see the module's docstring), or, with `per_call`, as calls
+    of near-equal size of at most `per_call` functions each, one after another. Warp calls inside
+    loops or conditionals of a function are not supported (an error says so)."""
     _register_target()
     runs, trees = [], []
     for fn, arg in zip(fns, args, strict=True):
@@ -98,9 +101,19 @@ def concurrently(fns: Sequence[Callable[[Any], Any]], args: Sequence[Any]) -> li
     pending = {i: _next_call(run, None, results, i) for i, run in enumerate(runs)}
     while pending := {i: call for i, call in pending.items() if call is not None}:
         order = sorted(pending)
-        outputs = _combined_call([pending[i] for i in order])
+        outputs = []
+        for part in _parts(order, per_call or len(order)):
+            outputs += _combined_call([pending[i] for i in part])
         pending = {i: _next_call(runs[i], out, results, i) for i, out in zip(order, outputs, strict=True)}
     return [jax.tree.unflatten(tree, leaves) for tree, leaves in zip(trees, results, strict=True)]
+
+
+def _parts(order: list[int], per_call: int) -> list[list[int]]:
+    """`order` in consecutive parts of at most `per_call`, as few as that allows, of sizes that
+    differ by at most one (9 scenes at 4 per call: 3, 3, 3, not 4, 4, 1)."""
+    count = -(-len(order) // per_call)
+    bounds = [len(order) * k // count for k in range(count + 1)]
+    return [order[a:b] for a, b in zip(bounds[:-1], bounds[1:], strict=True)]
 
 
 def _next_call(run: Generator, sent: Any, results: list[Any], i: int) -> _Call | None:

@@ -40,12 +40,17 @@ def _seeded(env: mwjax.Env, seeds: int | None) -> tuple[Any, Any, jax.Array, tup
 
 
 @pytest.mark.skipif(jax.default_backend() != "cpu", reason="bit-for-bit equality holds on the CPU")
-@pytest.mark.parametrize("seeds", [None, 2], ids=["one-batch", "vmapped-seeds"])
-def test_together_steps_equal_separate_calls_through_an_autoreset(seeds: int | None):
-    """Also under an outer `vmap` (the training examples' seeds), whose rows the physics merges."""
+@pytest.mark.parametrize(
+    ("seeds", "per_call"),
+    [(None, None), (2, None), (None, 1)],
+    ids=["one-batch", "vmapped-seeds", "1-per-call"],
+)
+def test_together_steps_equal_separate_calls_through_an_autoreset(seeds: int | None, per_call: int | None):
+    """Also under an outer `vmap` (the training examples' seeds), whose rows the physics merges,
+    and with a round split into calls (`scenes_per_call`)."""
 
     def rollout(together: bool) -> list[np.ndarray]:
-        physics = mwjax.PhysicsConfig(concurrent_scenes=together)
+        physics = mwjax.PhysicsConfig(concurrent_scenes=together, scenes_per_call=per_call)
         env = mwjax.make(TASKS, envs_per_task=2, seed=4, physics=physics, max_episode_steps=2)
         reset, step, keys, batch = _seeded(env, seeds)
         actions = jax.random.uniform(jax.random.key(1), (4, *batch, 4), minval=-1, maxval=1)
@@ -182,6 +187,32 @@ def test_a_round_is_one_call_with_every_scenes_operands_and_outputs():
         expected |= {i0 + i: o0 + o for i, o in dict(e.params["input_output_aliases"]).items()}
         i0, o0 = i0 + len(e.invars), o0 + len(e.outvars)
     assert expected and dict(call.params["input_output_aliases"]) == expected
+
+
+def test_scenes_per_call_splits_a_round_into_calls_of_near_equal_size():
+    """Three scenes at two per call: two calls, of one and two scenes, holding the scenes'
+    operands in the order of the scenes."""
+    env = mwjax.make([*TASKS, "push-v3"], envs_per_task=1)
+    physics = env.physics
+    datas = [physics.data(g, state) for g, state in enumerate(physics.make_data())]
+    fns = list(physics._kinematics)
+    in_turn = jax.make_jaxpr(lambda ds: [f(d) for f, d in zip(fns, ds, strict=True)])(datas)
+    separate = _warp_calls(in_turn.jaxpr)
+    jaxpr = jax.make_jaxpr(lambda ds: scene_streams.concurrently(fns, ds, per_call=2))(datas).jaxpr
+    calls = [e for e in jaxpr.eqns if e.primitive.name == "ffi_call"]
+    assert [len(c.invars) for c in calls] == [
+        len(separate[0].invars),
+        len(separate[1].invars) + len(separate[2].invars),
+    ]
+    assert scene_streams._parts(list(range(9)), 4) == [[0, 1, 2], [3, 4, 5], [6, 7, 8]]
+    assert scene_streams._parts(list(range(36)), 9) == [list(range(k, k + 9)) for k in (0, 9, 18, 27)]
+    assert scene_streams._parts([3, 5], 2) == [[3, 5]]
+
+
+@pytest.mark.parametrize("value", [0, -1, 2.0, True, "2"])
+def test_scenes_per_call_takes_a_positive_int_or_none(value: object):
+    with pytest.raises(ValueError, match="scenes_per_call"):
+        mwjax.PhysicsConfig(scenes_per_call=value)
 
 
 @pytest.mark.parametrize("value", ["yes", 0, 1])

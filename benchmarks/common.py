@@ -81,10 +81,13 @@ def add_set_argument(parser: argparse.ArgumentParser, default: str) -> None:
     )
 
 
+_DEFAULT = object()  # not a string: argparse would pass it through `type`
+
+
 def add_concurrent_scenes_argument(parser: argparse.ArgumentParser) -> None:
-    """`--concurrent-scenes on|off` and `--scenes-per-call N`, read as
+    """`--concurrent-scenes on|off` and `--scenes-per-call N|all`, read as
     `PhysicsConfig.concurrent_scenes` (absent: None, the default, side by side on one GPU) and
-    `PhysicsConfig.scenes_per_call`."""
+    `PhysicsConfig.scenes_per_call` (`scene_settings` gives both as keyword arguments)."""
     parser.add_argument(
         "--concurrent-scenes",
         type=_on_off,
@@ -92,18 +95,37 @@ def add_concurrent_scenes_argument(parser: argparse.ArgumentParser) -> None:
         default=None,
         help="PhysicsConfig.concurrent_scenes (default: on for one GPU, else off)",
     )
+    add_scenes_per_call_argument(parser)
+
+
+def add_scenes_per_call_argument(parser: argparse.ArgumentParser) -> None:
+    """`--scenes-per-call N|all` (`PhysicsConfig.scenes_per_call`; all: None)."""
     parser.add_argument(
         "--scenes-per-call",
-        type=_positive_int,
-        metavar="N",
-        default=None,
-        help="PhysicsConfig.scenes_per_call: at most N scenes per combined call (default: all)",
+        type=_per_call,
+        metavar="{N,all}",
+        default=_DEFAULT,
+        help="PhysicsConfig.scenes_per_call: at most N scenes per combined call, or all in one "
+        "(default: PhysicsConfig's)",
     )
 
 
-def _positive_int(text: str) -> int:
+def scene_settings(args: argparse.Namespace) -> dict[str, object]:
+    """The `PhysicsConfig` keyword arguments that the options of `add_concurrent_scenes_argument`
+    or `add_scenes_per_call_argument` set (none for an option left out: the config's default)."""
+    settings: dict[str, object] = {}
+    if getattr(args, "concurrent_scenes", None) is not None:
+        settings["concurrent_scenes"] = args.concurrent_scenes
+    if args.scenes_per_call is not _DEFAULT:
+        settings["scenes_per_call"] = args.scenes_per_call
+    return settings
+
+
+def _per_call(text: str) -> int | None:
+    if text == "all":
+        return None
     if not text.isdigit() or int(text) < 1:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, not {text!r}")
+        raise argparse.ArgumentTypeError(f"expected a positive integer or all, not {text!r}")
     return int(text)
 
 

@@ -9,7 +9,7 @@ lacks them, `mwjax.kernels.prebuild`), then for the reset and for one step of ze
 and lowering, XLA's compile (a read where JAX's persistent cache has the program) and the run.
 Run on a fresh machine (empty Warp and JAX caches) it is the cold first step, run again the warm
 one. `--concurrent-scenes on|off` sets how the scenes run (default: side by side on one GPU),
-`--scenes-per-call N` how many go into one call side by side (default: all).
+`--scenes-per-call N|all` how many go into one call side by side (default: PhysicsConfig's).
 Writes `results/compile/first-step-<set>-<commit>-<device>-<date>.json` (or `--out`).
 """
 
@@ -28,6 +28,7 @@ from common import (
     commit,
     provenance,
     result_path,
+    scene_settings,
     tasks_arg,
 )
 
@@ -127,9 +128,7 @@ def main(argv: list[str] | None = None) -> dict:
 
     config = {
         "envs_per_task": args.envs_per_task,
-        "physics": mwjax.PhysicsConfig(
-            concurrent_scenes=args.concurrent_scenes, scenes_per_call=args.scenes_per_call
-        ),
+        "physics": mwjax.PhysicsConfig(**scene_settings(args)),
     }
     phases: dict[str, float] = {}
     start = time.perf_counter()
@@ -159,7 +158,7 @@ def main(argv: list[str] | None = None) -> dict:
         "set": args.set,
         "envs": env.num_envs,
         "scenes_together": env.physics.concurrent_scenes,  # side by side (the default on one GPU)
-        "scenes_per_call": args.scenes_per_call,  # None: every scene in one call
+        "scenes_per_call": env.physics.config.scenes_per_call,  # None: every scene in one call
         "phases_s": phases,
         "make_to_first_step_s": round(total, 2),
         "kernel_modules_built_in_this_process": builds.built,

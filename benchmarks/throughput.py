@@ -48,6 +48,7 @@ from common import (
     provenance,
     result_path,
     rows_arg,
+    scene_settings,
     set_arg,
     tasks_arg,
 )
@@ -346,10 +347,10 @@ def main() -> None:
         "constraints_per_env": args.constraints,
         "ccd_pairs_per_env": args.ccd_pairs,
         "graph_mode": args.graph_mode,
-        "concurrent_scenes": args.concurrent_scenes,
-        "scenes_per_call": args.scenes_per_call,
     }
-    physics = mwjax.PhysicsConfig(**{k: v for k, v in settings.items() if v is not None})
+    physics = mwjax.PhysicsConfig(
+        **{k: v for k, v in settings.items() if v is not None}, **scene_settings(args)
+    )
 
     rows, adapter, reference = [], [], []
     for benchmark in args.sets:

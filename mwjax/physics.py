@@ -173,15 +173,17 @@ class PhysicsConfig:
     # None: where it was measured faster (2.5-2.9x per env step on an H200) and checked against
     # the scenes in turn for MT10 and MT50 (docs/performance.md), that is on one GPU with Warp
     # capturing the graphs (`graph_mode` None or "warp", not under `mwjax.determinism`);
-    # elsewhere one call per scene (`runs_scenes_together`). The cost: XLA compiles the step 1.8
-    # to 3.3 times as long (cached after the first run).
+    # elsewhere one call per scene (`runs_scenes_together`). The cost: XLA compiles the step
+    # longer (MT50's 1.9 times, with `scenes_per_call`; cached after the first run).
     concurrent_scenes: bool | None = None
     # With the scenes side by side, at most this many scenes' Warp calls in one combined call; a
-    # round's calls (of near-equal size) then run one after another. XLA's compile time grows
-    # faster than linearly with one call's aliased operands, the overlap of scenes shrinks with
-    # smaller calls (docs/performance.md). None: every scene in one call. No effect on the
-    # physics: each scene's calls are the same.
-    scenes_per_call: int | None = None
+    # round's calls, as few as that allows and of near-equal size, run one after another. XLA's
+    # compile of one call grows faster than linearly with its aliased operands, while smaller
+    # calls overlap fewer scenes. 10 keeps every set of up to 10 scenes (MT10's 8, ML10's 10) in
+    # one call and gives MT50's 36 four calls of 9: its first step on a fresh H200 194 s instead
+    # of 288 s, at the same steady-state rate (docs/performance.md). None: every scene in one
+    # call. The physics is the same either way.
+    scenes_per_call: int | None = 10
 
     def __post_init__(self) -> None:
         for name in ("substeps", "contacts_per_env", "iterations", "ls_iterations"):

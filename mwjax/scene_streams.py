@@ -22,7 +22,9 @@ separate calls would (a check of the plumbing). `PhysicsConfig.concurrent_scenes
 default an env on one GPU uses it (`physics.runs_scenes_together`).
 
 One call per round costs compile time: XLA's passes grow faster than linearly with one call's
-aliased operands (the MT50 step compiled 3.3 times as long on an H200). Two calls per scene (a
+aliased operands (the MT50 step compiled 3.3 times as long on an H200), so `per_call` splits a
+round into calls of a few scenes each, run one after another (`PhysicsConfig.scenes_per_call`;
+MT50 in four calls of 9: a third less compile at the same rate). Two calls per scene (a
 launch that returns at once and a join that makes XLA's stream wait, tied by tokens) compiled as
 fast as separate calls, but failed on the GPU with illegal memory accesses, cause not found
 (docs/performance.md has both measurements).

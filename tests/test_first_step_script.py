@@ -9,6 +9,8 @@ from pathlib import Path
 
 import pytest
 
+import mwjax
+
 BENCHMARKS = Path(__file__).parents[1] / "benchmarks"
 
 
@@ -31,6 +33,7 @@ def test_the_wait_for_a_first_step_is_timed_phase_by_phase(first_step, tmp_path)
     assert result["make_to_first_step_s"] >= sum(phases.values()) - 0.01 * len(phases)  # rounding
     assert result["envs"] == 1 and result["overflow_envs"] == 0
     assert result["scenes_together"] is False  # on the CPU the scenes run in turn
+    assert result["scenes_per_call"] == mwjax.PhysicsConfig().scenes_per_call  # the default
     assert result["device"] and result["command"].startswith("python") and result["commit"]
     # The step's compile (seconds on the CPU, over JAX's 1 s threshold) reads or writes JAX's cache.
     step = result["jax_cache"]["step"]
@@ -39,10 +42,21 @@ def test_the_wait_for_a_first_step_is_timed_phase_by_phase(first_step, tmp_path)
 
 
 def test_the_scenes_run_as_asked(first_step, tmp_path):
-    """`--concurrent-scenes on` (on the CPU the one call runs the scenes in turn inside it)."""
-    argv = ["--set", "reach-v3", "--envs-per-task", "1", "--concurrent-scenes", "on"]
+    """`--concurrent-scenes on` (on the CPU the one call runs the scenes in turn inside it), and
+    `--scenes-per-call all` (None: every scene in one call)."""
+    argv = [
+        "--set",
+        "reach-v3",
+        "--envs-per-task",
+        "1",
+        "--concurrent-scenes",
+        "on",
+        "--scenes-per-call",
+        "all",
+    ]
     result = first_step.main([*argv, "--out", str(tmp_path / "first-step.json")])
     assert result["scenes_together"] is True and result["overflow_envs"] == 0
+    assert result["scenes_per_call"] is None
 
 
 def test_bad_arguments_end_in_a_usage_error(first_step, tmp_path, usage_error):
@@ -50,6 +64,7 @@ def test_bad_arguments_end_in_a_usage_error(first_step, tmp_path, usage_error):
         (["--set", "MT11"], "unknown benchmark 'MT11'"),
         (["--envs-per-task", "0"], "positive"),
         (["--concurrent-scenes", "maybe"], "expected on or off"),
+        (["--scenes-per-call", "0"], "expected a positive integer or all"),
     ]
     for argv, message in cases:
         assert message in usage_error(first_step.main, [*argv, "--out", str(tmp_path / "x.json")])

@@ -42,7 +42,7 @@ def _seeded(env: mwjax.Env, seeds: int | None) -> tuple[Any, Any, jax.Array, tup
 @pytest.mark.skipif(jax.default_backend() != "cpu", reason="bit-for-bit equality holds on the CPU")
 @pytest.mark.parametrize(
     ("seeds", "per_call"),
-    [(None, None), (2, None), (None, 1)],
+    [(None, 10), (2, 10), (None, 1)],
     ids=["one-batch", "vmapped-seeds", "1-per-call"],
 )
 def test_together_steps_equal_separate_calls_through_an_autoreset(seeds: int | None, per_call: int | None):
@@ -205,7 +205,9 @@ def test_scenes_per_call_splits_a_round_into_calls_of_near_equal_size():
         len(separate[1].invars) + len(separate[2].invars),
     ]
     assert scene_streams._parts(list(range(9)), 4) == [[0, 1, 2], [3, 4, 5], [6, 7, 8]]
-    assert scene_streams._parts(list(range(36)), 9) == [list(range(k, k + 9)) for k in (0, 9, 18, 27)]
+    # The default, 10: MT50's 36 scenes in four calls of 9, MT10's 8 in one.
+    assert scene_streams._parts(list(range(36)), 10) == [list(range(k, k + 9)) for k in (0, 9, 18, 27)]
+    assert scene_streams._parts(list(range(8)), 10) == [list(range(8))]
     assert scene_streams._parts([3, 5], 2) == [[3, 5]]
 
 

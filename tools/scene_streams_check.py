@@ -31,17 +31,23 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).parents[1]))
 import mwjax  # noqa: E402
-from benchmarks.common import add_set_argument, provenance, tasks_arg  # noqa: E402
+from benchmarks.common import (  # noqa: E402
+    add_scenes_per_call_argument,
+    add_set_argument,
+    provenance,
+    scene_settings,
+    tasks_arg,
+)
 
 
 def rollout(
-    tasks: object, envs_per_task: int, steps: int, concurrent: bool, per_call: int | None = None
+    tasks: object, envs_per_task: int, steps: int, concurrent: bool, **settings: object
 ) -> tuple[np.ndarray, dict, list[str]]:
     env = mwjax.make(
         tasks,
         envs_per_task=envs_per_task,
         seed=0,
-        physics=mwjax.PhysicsConfig(concurrent_scenes=concurrent, scenes_per_call=per_call),
+        physics=mwjax.PhysicsConfig(concurrent_scenes=concurrent, **settings),
         max_episode_steps=max(2, steps // 2),  # every env autoresets inside the rollout
     )
 
@@ -63,7 +69,7 @@ def rollout(
     again_s = time.perf_counter() - t0
     timing = {"compile_s": compile_s, "first_run_s": first_s, "second_run_s": again_s}
     timing["concurrent"] = env.physics.config.concurrent_scenes
-    timing["scenes_per_call"] = per_call
+    timing["scenes_per_call"] = env.physics.config.scenes_per_call
     timing["overflow_envs"] = int((np.asarray(overflow) != 0).any(axis=0).sum())
     trajectory = np.concatenate([np.asarray(obs), np.asarray(reward)[..., None]], axis=-1)
     return trajectory, timing, list(env.task_list)
@@ -94,13 +100,13 @@ def main() -> None:
     add_set_argument(parser, default="MT10")
     parser.add_argument("--envs-per-task", type=int, default=16)
     parser.add_argument("--steps", type=int, default=100)
-    parser.add_argument("--scenes-per-call", type=int, default=None, help="PhysicsConfig.scenes_per_call")
+    add_scenes_per_call_argument(parser)
     parser.add_argument("--out", default=None, help="JSON path")
     args = parser.parse_args()
     tasks = tasks_arg(args.set)
     first, t_first, names = rollout(tasks, args.envs_per_task, args.steps, False)
     second, t_second, _ = rollout(tasks, args.envs_per_task, args.steps, False)
-    together, t_together, _ = rollout(tasks, args.envs_per_task, args.steps, True, args.scenes_per_call)
+    together, t_together, _ = rollout(tasks, args.envs_per_task, args.steps, True, **scene_settings(args))
 
     def per_step(other: np.ndarray) -> list[float]:
         return np.abs(other - first).reshape(args.steps, -1).max(axis=1).tolist()

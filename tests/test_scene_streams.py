@@ -71,14 +71,15 @@ def test_envs_with_and_without_scenes_side_by_side_share_their_settled_states():
     from the same settled states; on a GPU, where that settling differs in the last bits per
     computation and is chaotic for a few tasks, `tools/scene_streams_check.py` so compares the
     steps alone."""
-    made = [
-        mwjax.make(
-            ["disassemble-v3"], envs_per_task=1, physics=mwjax.PhysicsConfig(concurrent_scenes=together)
-        )
-        for together in (False, True)
+    configs = [
+        mwjax.PhysicsConfig(concurrent_scenes=False),
+        mwjax.PhysicsConfig(concurrent_scenes=True),
+        mwjax.PhysicsConfig(concurrent_scenes=True, scenes_per_call=1),
     ]
-    (in_turn,), (together,) = ([r for r in env._rows if r.spec.settle_per_goal] for env in made)
+    made = [mwjax.make(["disassemble-v3"], envs_per_task=1, physics=physics) for physics in configs]
+    (in_turn,), (together,), (split,) = ([r for r in env._rows if r.spec.settle_per_goal] for env in made)
     assert together.settled_per_variant is in_turn.settled_per_variant
+    assert split.settled_per_variant is in_turn.settled_per_variant
 
 
 def _rollouts_in_turn_twice_then_together(

@@ -38,6 +38,7 @@ import dataclasses
 import functools
 import hashlib
 import threading
+import weakref
 from collections.abc import Callable, Generator, Sequence
 from typing import Any
 
@@ -96,7 +97,7 @@ def concurrently(
     _register_target()
     runs, trees = [], []
     for fn, arg in zip(fns, args, strict=True):
-        closed, shape = jax.make_jaxpr(fn, return_shape=True)(arg)
+        closed, shape = jax.make_jaxpr(_traceable(fn), return_shape=True)(arg)
         trees.append(jax.tree.structure(shape))
         runs.append(_interpret(closed.jaxpr, closed.consts, jax.tree.leaves(arg)))
     results: list[Any] = [None] * len(runs)
@@ -108,6 +109,23 @@ def concurrently(
             outputs += _combined_call([pending[i] for i in part])
         pending = {i: _next_call(runs[i], out, results, i) for i, out in zip(order, outputs, strict=True)}
     return [jax.tree.unflatten(tree, leaves) for tree, leaves in zip(trees, results, strict=True)]
+
+
+_traceables: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def _traceable(fn: Callable[[Any], Any]) -> Callable[[Any], Any]:
+    """`fn` for `jax.make_jaxpr`, named by code: JAX names a traced function by its code or else
+    by `str(fn)`, which for a vmapped partial over an MJX model prints every array of the model
+    (seconds per MT50 step). One wrapper per `fn`, so that JAX's trace cache, keyed by the
+    function, still finds a function traced before."""
+    if fn not in _traceables:
+        _traceables[fn] = functools.partial(_apply, fn)
+    return _traceables[fn]
+
+
+def _apply(fn: Callable[[Any], Any], arg: Any) -> Any:
+    return fn(arg)
 
 
 def _parts(order: list[int], per_call: int) -> list[list[int]]:

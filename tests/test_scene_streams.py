@@ -6,6 +6,7 @@ rollout must equal the one with a call per scene bit for bit; the GPU's side-by-
 from __future__ import annotations
 
 import ctypes
+import functools
 from typing import Any
 
 import jax
@@ -144,6 +145,24 @@ def test_functions_without_warp_calls_run_as_they_are():
     out = jax.jit(lambda a, b: scene_streams.concurrently(fns, [a, b]))(*args)
     np.testing.assert_array_equal(out[0], np.arange(3.0) * 2)
     np.testing.assert_allclose(out[1]["y"], np.sin(np.ones(2)))
+
+
+def test_traced_functions_are_named_without_printing_what_they_close_over():
+    """A scene's function is a vmapped partial over its MJX model: JAX would name it by `str`,
+    which prints every array of the model. The wrapper is kept per function, so that JAX's trace
+    cache still finds a function traced before."""
+    printed = []
+
+    class Model:
+        def __repr__(self) -> str:
+            printed.append(True)
+            return "Model()"
+
+    fn = jax.vmap(functools.partial(lambda model, x: x * 2, Model()))
+    out = jax.jit(lambda a: scene_streams.concurrently([fn], [a]))(jnp.arange(3.0))
+    np.testing.assert_array_equal(out[0], np.arange(3.0) * 2)
+    assert not printed
+    assert scene_streams._traceable(fn) is scene_streams._traceable(fn)
 
 
 def test_a_warp_call_inside_a_loop_is_refused():

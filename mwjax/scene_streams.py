@@ -1,4 +1,4 @@
-"""Runs the MJX-Warp calls of several scenes as one FFI call, each scene on its own CUDA stream.
+"""Runs the MJX-Warp calls of several scenes as one FFI call (or a few), each scene on its own CUDA stream.
 
 XLA runs a program's FFI calls one after another on one stream, and a scene's MJX-Warp step is a
 chain of small kernels that fills a GPU only at tens of thousands of worlds: with one call per
@@ -10,8 +10,9 @@ find no stream inside a loop body.
 `concurrently(fns, args)` traces each function (one scene's vmapped `mjx.step` or
 `mjx.kinematics`) to a jaxpr, then evaluates the jaxprs side by side in the caller's trace,
 inlining the calls that hold Warp calls (MJX-Warp's `custom_vmap`, jits), until each reaches a Warp
-call; those calls become one FFI call that takes all their operands and returns all their outputs,
-and the evaluation goes on to the next round of Warp calls or the end.
+call; those calls become one FFI call that takes all their operands and returns all their outputs
+(or, with `per_call`, a few such calls one after another), and the evaluation goes on to the next
+round of Warp calls or the end.
 
 At run time the callback, on a GPU, captures each scene's Warp call into a CUDA graph on that
 scene's own stream, as Warp's "warp" graph mode does on XLA's stream (keyed by the addresses of the

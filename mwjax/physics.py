@@ -208,7 +208,7 @@ class PhysicsConfig:
             raise ValueError(f"concurrent_scenes must be True, False or None, not {self.concurrent_scenes!r}")
         per_call = self.scenes_per_call
         if per_call is not None and not (_is_int(per_call) and per_call >= 1):
-            raise ValueError(f"scenes_per_call must be a positive int or None, not {self.scenes_per_call!r}")
+            raise ValueError(f"scenes_per_call must be a positive int or None, not {per_call!r}")
 
 
 # Set to "0": `concurrent_scenes=None` resolves to off (`runs_scenes_together`).

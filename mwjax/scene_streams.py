@@ -119,14 +119,15 @@ def _traceable(fn: Callable[[Any], Any]) -> Callable[[Any], Any]:
     """`fn` for `jax.make_jaxpr`, named by code: JAX names a traced function by its code or else
     by `str(fn)`, which for a vmapped partial over an MJX model prints every array of the model
     (seconds per MT50 step). One wrapper per `fn`, so that JAX's trace cache, keyed by the
-    function, still finds a function traced before."""
+    function, still finds a function traced before; the wrapper holds `fn` weakly, or the table's
+    entry would keep `fn` (and its model) alive for good."""
     if fn not in _traceables:
-        _traceables[fn] = functools.partial(_apply, fn)
+        _traceables[fn] = functools.partial(_apply, weakref.ref(fn))
     return _traceables[fn]
 
 
-def _apply(fn: Callable[[Any], Any], arg: Any) -> Any:
-    return fn(arg)
+def _apply(fn: weakref.ref, arg: Any) -> Any:
+    return fn()(arg)
 
 
 def _parts(order: list[int], per_call: int) -> list[list[int]]:

@@ -7,6 +7,8 @@ from __future__ import annotations
 
 import ctypes
 import functools
+import gc
+import weakref
 from typing import Any
 
 import jax
@@ -150,7 +152,7 @@ def test_functions_without_warp_calls_run_as_they_are():
 def test_traced_functions_are_named_without_printing_what_they_close_over():
     """A scene's function is a vmapped partial over its MJX model: JAX would name it by `str`,
     which prints every array of the model. The wrapper is kept per function, so that JAX's trace
-    cache still finds a function traced before."""
+    cache still finds a function traced before, and does not keep the function alive."""
     printed = []
 
     class Model:
@@ -159,10 +161,14 @@ def test_traced_functions_are_named_without_printing_what_they_close_over():
             return "Model()"
 
     fn = jax.vmap(functools.partial(lambda model, x: x * 2, Model()))
-    out = jax.jit(lambda a: scene_streams.concurrently([fn], [a]))(jnp.arange(3.0))
+    out = jax.jit(lambda a, f=fn: scene_streams.concurrently([f], [a]))(jnp.arange(3.0))
     np.testing.assert_array_equal(out[0], np.arange(3.0) * 2)
     assert not printed
     assert scene_streams._traceable(fn) is scene_streams._traceable(fn)
+    alive = weakref.ref(fn)
+    del fn
+    gc.collect()
+    assert alive() is None
 
 
 def test_a_warp_call_inside_a_loop_is_refused():
@@ -185,21 +191,25 @@ def _warp_calls(jaxpr: Any) -> list[Any]:
     return calls
 
 
+def _kinematics_calls(tasks: list[str], per_call: int | None = None) -> tuple[list[Any], list[Any]]:
+    """The Warp calls of the scenes' kinematics traced one by one, and the FFI calls that
+    `concurrently` makes of them."""
+    physics = mwjax.make(tasks, envs_per_task=1).physics
+    datas = [physics.data(g, state) for g, state in enumerate(physics.make_data())]
+    fns = list(physics._kinematics)
+    in_turn = jax.make_jaxpr(lambda ds: [f(d) for f, d in zip(fns, ds, strict=True)])(datas)
+    jaxpr = jax.make_jaxpr(lambda ds: scene_streams.concurrently(fns, ds, per_call))(datas).jaxpr
+    return _warp_calls(in_turn.jaxpr), [e for e in jaxpr.eqns if e.primitive.name == "ffi_call"]
+
+
 def test_a_round_is_one_call_with_every_scenes_operands_and_outputs():
     """On a GPU the call returns only once every scene's stream is done, so one call per round
     holds all that the streams read and write: every scene's Warp operands and outputs, with each
     scene's aliases (a split into a launch and a join per scene failed on the GPU:
     docs/performance.md)."""
-    env = mwjax.make(TASKS, envs_per_task=1)
-    physics = env.physics
-    datas = [physics.data(g, state) for g, state in enumerate(physics.make_data())]
-    fns = list(physics._kinematics)
-    in_turn = jax.make_jaxpr(lambda ds: [f(d) for f, d in zip(fns, ds, strict=True)])(datas)
-    separate = _warp_calls(in_turn.jaxpr)
-    jaxpr = jax.make_jaxpr(lambda ds: scene_streams.concurrently(fns, ds))(datas).jaxpr
-    (call,) = [e for e in jaxpr.eqns if e.primitive.name == "ffi_call"]
+    separate, (call,) = _kinematics_calls(TASKS)
     assert call.params["target_name"] == scene_streams._TARGET
-    assert len(separate) == len(fns)
+    assert len(separate) == len(TASKS)
     assert len(call.invars) == sum(len(e.invars) for e in separate)
     assert len(call.outvars) == sum(len(e.outvars) for e in separate)
     expected, i0, o0 = {}, 0, 0
@@ -212,14 +222,7 @@ def test_a_round_is_one_call_with_every_scenes_operands_and_outputs():
 def test_scenes_per_call_splits_a_round_into_calls_of_near_equal_size():
     """Three scenes at two per call: two calls, of one and two scenes, holding the scenes'
     operands in the order of the scenes."""
-    env = mwjax.make([*TASKS, "push-v3"], envs_per_task=1)
-    physics = env.physics
-    datas = [physics.data(g, state) for g, state in enumerate(physics.make_data())]
-    fns = list(physics._kinematics)
-    in_turn = jax.make_jaxpr(lambda ds: [f(d) for f, d in zip(fns, ds, strict=True)])(datas)
-    separate = _warp_calls(in_turn.jaxpr)
-    jaxpr = jax.make_jaxpr(lambda ds: scene_streams.concurrently(fns, ds, per_call=2))(datas).jaxpr
-    calls = [e for e in jaxpr.eqns if e.primitive.name == "ffi_call"]
+    separate, calls = _kinematics_calls([*TASKS, "push-v3"], per_call=2)
     assert [len(c.invars) for c in calls] == [
         len(separate[0].invars),
         len(separate[1].invars) + len(separate[2].invars),

@@ -18,7 +18,8 @@ whose 500-step rollout would not fit a 10-minute device call (MT50 at 400k envs)
 process per env through Gymnasium's AsyncVectorEnv, see `reference_throughput.py`) in the same
 invocation and prints mwjax's best protocol rate over it per set. `--adapter` also times the
 Gymnasium adapter (`mwjax.make_vector`, one jitted call and a NumPy transfer per step) at the same
-batch sizes. `--plot` saves the scaling curve (protocol rows only) as a PNG beside the JSON.
+batch sizes, with the run's `--concurrent-scenes` / `--scenes-per-call` (absent: the adapter's
+default, scenes in turn; `--concurrent-scenes on` runs its scenes side by side, staged). `--plot` saves the scaling curve (protocol rows only) as a PNG beside the JSON.
 
 On a GPU set XLA_PYTHON_CLIENT_MEM_FRACTION (~0.45) so JAX leaves Warp room.
 """
@@ -210,17 +211,20 @@ def _with_provenance(function: Callable[..., dict], *args: object) -> dict:
     return {**function(*args), "provenance": provenance()}
 
 
-def measure_adapter(benchmark: str, total: int, steps: int, array_type: str, graph_mode: str | None) -> dict:
+def measure_adapter(
+    benchmark: str, total: int, steps: int, array_type: str, graph_mode: str | None, scenes: dict
+) -> dict:
     """The Gymnasium adapter stepped from Python with `array_type` actions in and results out:
     "numpy" is what a Gymnasium user gets, "jax" (device arrays) isolates the host transfer.
-    `graph_mode` is the adapter env's `PhysicsConfig.graph_mode` (None: the adapter's default)."""
+    `graph_mode` is the adapter env's `PhysicsConfig.graph_mode` (None: the adapter's default),
+    `scenes` its `concurrent_scenes` / `scenes_per_call` settings (`scene_settings`)."""
     n_tasks = len(task_names(tasks_arg(benchmark)))
     envs = make_vector(
         tasks_arg(benchmark),
         envs_per_task=total // n_tasks,
         seed=0,
         array_type=array_type,
-        physics=mwjax.PhysicsConfig(graph_mode=graph_mode),
+        physics=mwjax.PhysicsConfig(graph_mode=graph_mode, **scenes),
     )
     envs.reset(seed=0)
     rng = np.random.default_rng(0)
@@ -232,17 +236,20 @@ def measure_adapter(benchmark: str, total: int, steps: int, array_type: str, gra
     for action in actions[1:]:
         out = envs.step(action)
     jax.block_until_ready(out)
-    return {f"adapter_{array_type}_env_steps_per_s": envs.num_envs * steps / (time.perf_counter() - t0)}
+    return {
+        f"adapter_{array_type}_env_steps_per_s": envs.num_envs * steps / (time.perf_counter() - t0),
+        "scenes_together": envs.unwrapped.env.physics.concurrent_scenes,
+    }
 
 
-def adapter_row(benchmark: str, total: int, steps: int, graph_mode: str | None) -> dict:
+def adapter_row(benchmark: str, total: int, steps: int, graph_mode: str | None, scenes: dict) -> dict:
     """The adapter's timing, each array type in a process of its own (Warp keeps an env's CUDA
     graphs for the life of its process), or the error that stopped it (out of device memory,
     say): recorded in the row, so the throughput rows measured before it are still written."""
     row: dict = {"benchmark": benchmark, "num_envs": total, "adapter_steps": steps, "graph_mode": graph_mode}
     for array_type in ("jax", "numpy"):
         try:
-            row |= in_fresh_process(measure_adapter, benchmark, total, steps, array_type, graph_mode)
+            row |= in_fresh_process(measure_adapter, benchmark, total, steps, array_type, graph_mode, scenes)
         except Exception as e:  # the child's exception, or a child that died (BrokenProcessPool)
             return row | {"error": f"{array_type} arrays: {type(e).__name__}: {e}"}
     jax_rate, numpy_rate = row["adapter_jax_env_steps_per_s"], row["adapter_numpy_env_steps_per_s"]
@@ -377,7 +384,9 @@ def main() -> None:
             )
             for graph_mode in args.adapter_graph_modes if args.adapter else ():
                 mode = None if graph_mode == "default" else graph_mode
-                timing = adapter_row(benchmark, total - total % n_tasks, args.adapter_steps, mode)
+                timing = adapter_row(
+                    benchmark, total - total % n_tasks, args.adapter_steps, mode, scene_settings(args)
+                )
                 adapter.append(timing)
                 if "error" in timing:
                     text = f"FAILED: {timing['error']}"
@@ -386,7 +395,8 @@ def main() -> None:
                         f"{timing['adapter_numpy_env_steps_per_s']:>12,.0f} env steps/s with NumPy, "
                         f"{timing['adapter_jax_env_steps_per_s']:,.0f} with jax arrays"
                     )
-                print(f"{'':>20} {'':>7}       adapter ({graph_mode} graphs): {text}", flush=True)
+                scenes = ", scenes side by side" if timing.get("scenes_together") else ""
+                print(f"{'':>20} {'':>7}       adapter ({graph_mode} graphs{scenes}): {text}", flush=True)
     if args.vs_reference:
         for benchmark in args.sets:
             ref = measure_reference(args.vs_reference, benchmark, args.reference_steps)

@@ -174,7 +174,9 @@ class PhysicsConfig:
     # the scenes in turn for MT10 and MT50 (docs/performance.md), that is on one GPU with Warp
     # capturing the graphs (`graph_mode` None or "warp", not under `mwjax.determinism`);
     # elsewhere one call per scene (`runs_scenes_together`). The cost: XLA compiles the step
-    # longer (MT50's 1.9 times, with `scenes_per_call`; cached after the first run).
+    # longer (MT50's 1.9 times, with `scenes_per_call`; cached after the first run). True also
+    # runs with the staged graph modes (the Gymnasium adapter's), each scene call captured once
+    # against staging buffers.
     concurrent_scenes: bool | None = None
     # With the scenes side by side, at most this many scenes' Warp calls in one combined call; a
     # round's calls, as few as that allows and of near-equal size, run one after another. XLA's
@@ -237,8 +239,15 @@ def scenes_together_by_default(config: PhysicsConfig, platform: str, devices: in
 
 def _warp_captures_graphs(config: PhysicsConfig) -> bool:
     """Whether Warp captures the CUDA graphs itself on a GPU (its "warp" mode), as the scenes'
-    streams do: not in the staged modes, without capture or under `mwjax.determinism`."""
+    streams do by default: not in the staged modes, without capture or under `mwjax.determinism`."""
     return config.graph_mode in (None, "warp") and not determinism.enabled()
+
+
+def _streams_capture(config: PhysicsConfig) -> bool:
+    """Whether the scenes' streams can run in `config`'s graph mode: Warp's own ("warp"), or a
+    staged mode, which `mwjax.scene_streams` stages per scene call as Warp does per call (asked
+    for, not a default: not yet measured on a GPU)."""
+    return config.graph_mode in (None, "warp", "warp_staged", "warp_staged_ex") and not determinism.enabled()
 
 
 def _is_int(value: object) -> bool:
@@ -328,10 +337,11 @@ class Physics:
                 f"graph_mode={config.graph_mode!r} captures CUDA graphs and needs a GPU; on the CPU "
                 f"Warp runs {' or '.join(map(repr, _CPU_GRAPH_MODES))} (or None, MJX's choice)"
             )
-        if config.concurrent_scenes and platform == "gpu" and not _warp_captures_graphs(config):
+        if config.concurrent_scenes and platform == "gpu" and not _streams_capture(config):
             raise ValueError(
-                "concurrent_scenes=True captures each scene's CUDA graphs itself, as graph_mode='warp' "
-                f"does; it cannot run with graph_mode={config.graph_mode!r} or under mwjax.determinism"
+                "concurrent_scenes=True captures each scene's CUDA graphs itself, as graph_mode 'warp' "
+                "or a staged mode does; it cannot run with "
+                f"graph_mode={config.graph_mode!r} or under mwjax.determinism"
             )
         self.config = config
         self.concurrent_scenes = runs_scenes_together(config, platform)

@@ -18,8 +18,13 @@ At run time the callback, on a GPU, captures each scene's Warp call into a CUDA 
 scene's own stream, as Warp's "warp" graph mode does on XLA's stream (keyed by the addresses of the
 call's buffers, up to `_GRAPHS_PER_SCENE` per call and scene), and replays the graphs side by
 side: every scene stream waits for XLA's stream, and XLA's stream waits for every scene stream
-before the call returns. On the CPU it runs the scenes' Warp calls one after another, as the
-separate calls would (a check of the plumbing). `PhysicsConfig.concurrent_scenes` selects this; by
+before the call returns. A scene whose Warp callable is in one of Warp's staged graph modes
+(`PhysicsConfig.graph_mode="warp_staged_ex"` or `"warp_staged"`) is captured once instead, against
+staging buffers, and each call copies its inputs in and its outputs out around the replay, as
+"warp_staged_ex" does for a call of its own: a program run from Python (the Gymnasium adapter)
+gets new buffers from XLA at every execution, so graphs keyed by address would never replay. On
+the CPU it runs the scenes' Warp calls one after another, as the separate calls would (a check of
+the plumbing). `PhysicsConfig.concurrent_scenes` selects this; by
 default an env on one GPU uses it (`physics.runs_scenes_together`).
 
 One call per round costs compile time: XLA's passes grow faster than linearly with one call's
@@ -77,9 +82,89 @@ class _Site:
     outputs: list[tuple[int, int]]
     # Per call, its captured graphs by buffer addresses, least recently used first.
     graphs: list[collections.OrderedDict] = dataclasses.field(init=False)
+    # Per call in a staged graph mode, its capture against staging buffers by device ordinal.
+    stages: list[dict[int, _Stage]] = dataclasses.field(init=False)
 
     def __post_init__(self) -> None:
         self.graphs = [collections.OrderedDict() for _ in self.calls]
+        self.stages = [{} for _ in self.calls]
+
+
+@dataclasses.dataclass
+class _Copies:
+    """Device copies between a call's XLA buffers (`index`: its input or output numbers) and
+    staging buffers, one batch per call: into the staging buffers before a replay, or out of
+    them after it."""
+
+    index: np.ndarray
+    staging: np.ndarray  # staging addresses (uint64)
+    sizes: np.ndarray  # bytes (uint64)
+    inward: bool
+
+    def run(self, pointers: np.ndarray, device: wp.Device, stream: wp.Stream) -> None:
+        """Copies between the XLA buffers at `pointers` (the call's, by number) and the staging
+        buffers, on `stream`."""
+        if not len(self.index):
+            return
+        xla = np.ascontiguousarray(pointers[self.index], dtype=np.uint64)
+        dsts, srcs = (self.staging, xla) if self.inward else (xla, self.staging)
+        core = wp._src.context.runtime.core
+        if not core.wp_memcpy_batch(
+            device.context,
+            dsts.ctypes.data,
+            srcs.ctypes.data,
+            self.sizes.ctypes.data,
+            len(self.index),
+            stream.cuda_stream,
+        ):
+            raise RuntimeError(f"staging copies failed: {wp._src.context.runtime.get_error_string()}")
+
+
+@dataclasses.dataclass
+class _Stage:
+    """A scene call's arguments on staging buffers, the copies around each replay, and (once
+    captured) its graph."""
+
+    args: list[Any]
+    buffers: list[wp.array]  # kept alive for the graph
+    copy_in: _Copies
+    copy_out: _Copies
+    capture: Any = None
+
+
+def _staged(callable_: ffi.FfiCallable, args: list[Any]) -> _Stage:
+    """`args` (a call's Warp arguments on XLA's buffers) moved onto staging buffers, as Warp's
+    staged modes do (`FfiCallable._prepare_staging`): every non-empty array gets a staging copy;
+    inputs named by the callable's `stage_in_argnames` (all if None) are copied in at every call,
+    the others once, here; outputs named by `stage_out_argnames` are copied out at every call.
+    Runs on the current device and stream."""
+    staged, buffers = list(args), []
+    copies: dict[bool, list[tuple[int, int, int]]] = {True: [], False: []}
+    for i, arg in enumerate(args):
+        if not (isinstance(arg, wp.array) and arg.size > 0):
+            continue
+        buffer = wp.empty_like(arg)
+        staged[i] = buffer
+        buffers.append(buffer)
+        size = arg.size * wp.types.type_size_in_bytes(arg.dtype)
+        name = callable_.args[i].name
+        for inward, index, names in (
+            (True, callable_.arg_input_indices[i], callable_.stage_in_argnames),
+            (False, callable_.arg_output_indices[i], callable_.stage_out_argnames),
+        ):
+            if index is None:
+                continue
+            if names is None or name in names:
+                copies[inward].append((index, buffer.ptr, size))
+            else:
+                wp.copy(buffer, arg)
+    return _Stage(staged, buffers, _copies(copies[True], True), _copies(copies[False], False))
+
+
+def _copies(rows: list[tuple[int, int, int]], inward: bool) -> _Copies:
+    """`_Copies` of (XLA buffer number, staging address, bytes) rows."""
+    table = np.array(rows, np.uint64).reshape(-1, 3)
+    return _Copies(table[:, 0].astype(np.int64), table[:, 1].copy(), table[:, 2].copy(), inward)
 
 
 _lock = threading.Lock()
@@ -351,24 +436,50 @@ def _run_on_streams(site: _Site, frame: Any, inputs: int, outputs: int) -> None:
     core.wp_cuda_event_record(own.start.cuda_event, xla_stream, False)
     for k, (call, (i0, i1), (o0, o1)) in enumerate(zip(site.calls, site.inputs, site.outputs, strict=True)):
         stream = streams[k]
-        key = (ordinal, in_ptrs[i0:i1].tobytes(), out_ptrs[o0:o1].tobytes())
-        graphs = site.graphs[k]
-        capture = graphs.get(key)
         core.wp_cuda_stream_wait_event(stream.cuda_stream, own.start.cuda_event, False)
-        if capture is None:
-            args = _arguments(call, _buffers(inputs, i0, i1), _buffers(outputs, o0, o1), device)
-            ffi._load_ffi_module(wp.get_module(call[0].func.__module__), device)
-            with wp.ScopedDevice(device), wp.ScopedStream(stream, sync_enter=False):
-                with wp.ScopedCapture(stream=stream) as capture:
-                    call[0].func(*args)
-            wp.capture_launch(capture.graph, stream=stream)
-            graphs[key] = capture
-            if len(graphs) > _GRAPHS_PER_SCENE:
-                graphs.popitem(last=False)
+        ins, outs = in_ptrs[i0:i1], out_ptrs[o0:o1]
+        if call[0].graph_mode in _STAGED_MODES:
+            stage = site.stages[k].get(ordinal)
+            if stage is None:
+                args = _arguments(call, _buffers(inputs, i0, i1), _buffers(outputs, o0, o1), device)
+                with wp.ScopedDevice(device), wp.ScopedStream(stream, sync_enter=False):
+                    stage = site.stages[k][ordinal] = _staged(call[0], args)
+                stage.copy_in.run(ins, device, stream)
+                stage.capture = _capture(call, stage.args, device, stream)
+            else:
+                stage.copy_in.run(ins, device, stream)
+                _launch(stage.capture, stream)
+            stage.copy_out.run(outs, device, stream)
         else:
-            graphs.move_to_end(key)
-            if not core.wp_cuda_graph_launch(capture.graph.graph_exec, stream.cuda_stream):
-                raise RuntimeError(f"graph launch failed: {wp._src.context.runtime.get_error_string()}")
+            key = (ordinal, ins.tobytes(), outs.tobytes())
+            graphs = site.graphs[k]
+            capture = graphs.get(key)
+            if capture is None:
+                args = _arguments(call, _buffers(inputs, i0, i1), _buffers(outputs, o0, o1), device)
+                graphs[key] = _capture(call, args, device, stream)
+                if len(graphs) > _GRAPHS_PER_SCENE:
+                    graphs.popitem(last=False)
+            else:
+                graphs.move_to_end(key)
+                _launch(capture, stream)
         core.wp_cuda_event_record(own.done[k].cuda_event, stream.cuda_stream, False)
     for k in range(len(site.calls)):
         core.wp_cuda_stream_wait_event(xla_stream, own.done[k].cuda_event, False)
+
+
+_STAGED_MODES = (ffi.JaxCallableGraphMode.WARP_STAGED, ffi.JaxCallableGraphMode.WARP_STAGED_EX)
+
+
+def _capture(call: tuple[ffi.FfiCallable, int], args: list[Any], device: wp.Device, stream: wp.Stream) -> Any:
+    """Captures the call with `args` into a CUDA graph on `stream`, launches it and returns it."""
+    ffi._load_ffi_module(wp.get_module(call[0].func.__module__), device)
+    with wp.ScopedDevice(device), wp.ScopedStream(stream, sync_enter=False):
+        with wp.ScopedCapture(stream=stream) as capture:
+            call[0].func(*args)
+    wp.capture_launch(capture.graph, stream=stream)
+    return capture
+
+
+def _launch(capture: Any, stream: wp.Stream) -> None:
+    if not wp._src.context.runtime.core.wp_cuda_graph_launch(capture.graph.graph_exec, stream.cuda_stream):
+        raise RuntimeError(f"graph launch failed: {wp._src.context.runtime.get_error_string()}")

@@ -15,10 +15,12 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+import warp as wp
 from tool_scripts import load_tool
 
 import mwjax
 from mwjax import determinism, scene_streams
+from mwjax import physics as physics_module
 from mwjax.benchmarks import task_names
 from mwjax.physics import runs_scenes_together
 from mwjax.tasks import TASKS as TASK_SPECS
@@ -123,6 +125,97 @@ def test_together_stays_as_close_to_in_turn_as_in_turn_to_itself_on_the_gpu(seed
     assert not first[..., -1].any() and not together[..., -1].any()  # no env overflowed
     assert np.isfinite(together).all()
     assert np.abs(together - first).max() <= 10 * max(np.abs(second - first).max(), 1e-4)
+
+
+@pytest.mark.gpu
+def test_staged_scene_calls_replay_with_each_calls_inputs_on_the_gpu():
+    """With the scenes side by side in Warp's staged mode (the Gymnasium adapter's), each scene
+    call is captured once against staging buffers and replayed with every later call's inputs
+    copied in: steps from new states, at new addresses, must be those of the side-by-side step in
+    Warp's own mode from the same states (to the atomics' last bits)."""
+    tasks = ["pick-place-v3", "reach-v3", "door-open-v3"]
+    modes = (None, "warp_staged_ex")
+    configs = [mwjax.PhysicsConfig(concurrent_scenes=True, graph_mode=mode) for mode in modes]
+    envs = [mwjax.make(tasks, envs_per_task=16, physics=physics) for physics in configs]
+    assert all(env.physics.concurrent_scenes for env in envs)
+    steps = [jax.jit(env.step) for env in envs]
+    state = jax.jit(envs[0].reset)(jax.random.key(0))
+    for key in jax.random.split(jax.random.key(1), 6):
+        action = jax.random.uniform(key, (envs[0].num_envs, 4), minval=-1.0, maxval=1.0)
+        expected, replayed = (step(state, action) for step in steps)
+        np.testing.assert_allclose(np.asarray(replayed.obs), np.asarray(expected.obs), atol=1e-4)
+        np.testing.assert_allclose(np.asarray(replayed.reward), np.asarray(expected.reward), atol=1e-3)
+        state = expected
+
+
+@pytest.mark.gpu
+def test_the_adapter_steps_with_its_scenes_side_by_side_on_the_gpu():
+    """The Gymnasium adapter asked for its scenes side by side (its staged mode, donated state):
+    it steps through an autoreset with finite observations, keeping one staged capture per
+    scene call, and a reset with the same seed starts over."""
+    from mwjax.wrappers.gymnasium import make_vector
+
+    physics = mwjax.PhysicsConfig(concurrent_scenes=True)
+    envs = make_vector(["pick-place-v3", "reach-v3"], envs_per_task=4, physics=physics, max_episode_steps=5)
+    assert envs.unwrapped.env.physics.concurrent_scenes
+    first, _ = envs.reset(seed=0)
+    rng = np.random.default_rng(0)
+    for _ in range(8):
+        obs, reward, *_ = envs.step(rng.uniform(-1, 1, (8, 4)).astype(np.float32))
+        assert np.all(np.isfinite(obs)) and np.all(np.isfinite(reward))
+    per_call = [stages for site in scene_streams._sites.values() for stages in site.stages]
+    assert any(per_call) and all(len(stages) <= 1 for stages in per_call)  # one device: one capture
+    assert all(stage.capture is not None for stages in per_call for stage in stages.values())
+    np.testing.assert_allclose(envs.reset(seed=0)[0], first, atol=1e-5)
+
+
+def _noop(
+    a: wp.array(dtype=float),
+    b: wp.array(dtype=float),
+    e: wp.array(dtype=float),
+    c: wp.array(dtype=float),
+    d: wp.array(dtype=float),
+) -> None:
+    pass
+
+
+def test_a_staged_scene_call_copies_what_warps_staged_mode_copies():
+    """`_staged` moves a call's arrays onto staging buffers as Warp's staged modes do: the inputs
+    named to be staged (and the in-out array) are copied in at every call, the others once; the
+    outputs named to be staged are copied out at every call; an empty array stays as it is."""
+    callable_ = wp.jax_callable(
+        _noop,
+        num_outputs=2,
+        in_out_argnames=["c"],
+        stage_in_argnames=["b", "c"],
+        stage_out_argnames=["c"],
+        graph_mode=wp.JaxCallableGraphMode.WARP_STAGED_EX,
+    )
+    args = [
+        wp.array(np.arange(n, dtype=np.float32) + 10 * i, device="cpu") for i, n in enumerate([3, 4, 0, 5, 6])
+    ]
+    stage = scene_streams._staged(callable_, args)
+    assert stage.args[2] is args[2]  # empty: nothing to stage
+    for i in (0, 1, 3, 4):
+        assert stage.args[i].ptr != args[i].ptr and stage.args[i].shape == args[i].shape
+    # Copied once, here: the input not named for staging (a) and the output not named (d).
+    np.testing.assert_array_equal(stage.args[0].numpy(), args[0].numpy())
+    np.testing.assert_array_equal(stage.args[4].numpy(), args[4].numpy())
+    assert stage.copy_in.index.tolist() == [1, 3]  # b and c, by their FFI input numbers
+    assert stage.copy_in.staging.tolist() == [stage.args[1].ptr, stage.args[3].ptr]
+    assert stage.copy_in.sizes.tolist() == [16, 20]
+    assert stage.copy_out.index.tolist() == [0]  # c, the first FFI output
+    assert stage.copy_out.staging.tolist() == [stage.args[3].ptr] and stage.copy_out.sizes.tolist() == [20]
+
+
+@pytest.mark.parametrize("mode", ["warp_staged_ex", "warp_staged"])
+def test_scenes_side_by_side_run_in_the_staged_modes_when_asked(mode: str):
+    """Asked for, the scenes run side by side with a staged graph mode too (each scene call staged
+    as Warp stages a call); left to the default, they do not."""
+    assert runs_scenes_together(mwjax.PhysicsConfig(concurrent_scenes=True, graph_mode=mode), "gpu")
+    assert not runs_scenes_together(mwjax.PhysicsConfig(graph_mode=mode), "gpu")
+    assert physics_module._streams_capture(mwjax.PhysicsConfig(graph_mode=mode))
+    assert not physics_module._streams_capture(mwjax.PhysicsConfig(graph_mode="none"))
 
 
 @pytest.mark.gpu

@@ -702,21 +702,9 @@ def main() -> None:
         default=d.per_task_returns,
         help="scale the learning signal by each train task's return std (the input reward keeps one scale)",
     )
-    parser.add_argument("--seeds", type=int, nargs="+", default=[0])
-    parser.add_argument(
-        "--parallel",
-        type=int,
-        default=1,
-        help="seeds trained at once, each in its own process on a GPU of its own (1: one after another)",
-    )
-    parser.add_argument("--minutes", type=float, default=8.0, help="wall clock per seed, compile included")
-    parser.add_argument("--updates", type=int, default=None, help="stop after this many updates instead")
-    parser.add_argument("--log-every", type=int, default=10, help="updates per jitted chunk")
+    ppo.add_run_arguments(parser, 8.0, "wall clock per seed, compile included")
     parser.add_argument(
         "--checkpoint", default=None, help="stem to save to after every chunk and resume from"
-    )
-    parser.add_argument(
-        "--out", default=None, help="result stem (default: benchmarks/results/train/train-...)"
     )
     ppo.add_combine_argument(parser)
     args = parser.parse_args()

@@ -1137,27 +1137,13 @@ def main() -> None:
         default=defaults.staggered_starts,
         help="cut each env's first episode at a random multiple of --unroll steps (runs 1-6: off)",
     )
-    parser.add_argument("--seeds", type=int, nargs="+", default=[0])
-    parser.add_argument(
-        "--parallel",
-        type=int,
-        default=1,
-        help="seeds trained at once, each in its own process on a GPU of its own (1: one after another)",
-    )
+    add_run_arguments(parser, 8.4, "wall clock per seed (--vmap-seeds: for all), compile included")
     parser.add_argument(
         "--vmap-seeds",
         action="store_true",
         help="train all --seeds at once in one program on one device (jax.vmap over seeds; one env, "
         "so one set of goal variants)",
     )
-    parser.add_argument(
-        "--minutes",
-        type=float,
-        default=8.4,
-        help="wall clock per seed (--vmap-seeds: for all), compile included",
-    )
-    parser.add_argument("--updates", type=int, default=None, help="stop after this many updates instead")
-    parser.add_argument("--log-every", type=int, default=10, help="updates per jitted chunk")
     parser.add_argument("--eval-episodes", type=int, default=50, help="per task, one per goal variant")
     parser.add_argument(
         "--time-learner", action="store_true", help="after the evaluation, time the learner alone"
@@ -1167,9 +1153,6 @@ def main() -> None:
         default="1",
         help="devices to train on, data parallel: a count or 'all' (with python -m mwjax.distributed, "
         "every process's GPU)",
-    )
-    parser.add_argument(
-        "--out", default=None, help="result stem (default: benchmarks/results/train/train-...)"
     )
     parser.add_argument(
         "--video",
@@ -1432,6 +1415,23 @@ def combine_runs(paths: list[Path], across_commits: bool = False) -> tuple[list[
     ]
     commits = "+".join(dict.fromkeys(data["commit"] for _, data in files))
     return runs, files[0][1]["device"], {"commit": commits, "sources": sources}
+
+
+def add_run_arguments(parser: argparse.ArgumentParser, minutes: float, minutes_help: str) -> None:
+    """A training script's seeds, how many train at once, its budget, chunk size and result stem."""
+    parser.add_argument("--seeds", type=int, nargs="+", default=[0])
+    parser.add_argument(
+        "--parallel",
+        type=int,
+        default=1,
+        help="seeds trained at once, each in its own process on a GPU of its own (1: one after another)",
+    )
+    parser.add_argument("--minutes", type=float, default=minutes, help=minutes_help)
+    parser.add_argument("--updates", type=int, default=None, help="stop after this many updates instead")
+    parser.add_argument("--log-every", type=int, default=10, help="updates per jitted chunk")
+    parser.add_argument(
+        "--out", default=None, help="result stem (default: benchmarks/results/train/train-...)"
+    )
 
 
 def add_combine_argument(parser: argparse.ArgumentParser) -> None:

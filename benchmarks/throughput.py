@@ -356,9 +356,8 @@ def main() -> None:
         "ccd_pairs_per_env": args.ccd_pairs,
         "graph_mode": args.graph_mode,
     }
-    physics = mwjax.PhysicsConfig(
-        **{k: v for k, v in settings.items() if v is not None}, **scene_settings(args)
-    )
+    scenes = scene_settings(args)
+    physics = mwjax.PhysicsConfig(**{k: v for k, v in settings.items() if v is not None}, **scenes)
 
     rows, adapter, reference = [], [], []
     for benchmark in args.sets:
@@ -385,9 +384,7 @@ def main() -> None:
             )
             for graph_mode in args.adapter_graph_modes if args.adapter else ():
                 mode = None if graph_mode == "default" else graph_mode
-                timing = adapter_row(
-                    benchmark, total - total % n_tasks, args.adapter_steps, mode, scene_settings(args)
-                )
+                timing = adapter_row(benchmark, total - total % n_tasks, args.adapter_steps, mode, scenes)
                 adapter.append(timing)
                 if "error" in timing:
                     text = f"FAILED: {timing['error']}"
@@ -396,8 +393,8 @@ def main() -> None:
                         f"{timing['adapter_numpy_env_steps_per_s']:>12,.0f} env steps/s with NumPy, "
                         f"{timing['adapter_jax_env_steps_per_s']:,.0f} with jax arrays"
                     )
-                scenes = ", scenes side by side" if timing.get("scenes_together") else ""
-                print(f"{'':>20} {'':>7}       adapter ({graph_mode} graphs{scenes}): {text}", flush=True)
+                together = ", scenes side by side" if timing.get("scenes_together") else ""
+                print(f"{'':>20} {'':>7}       adapter ({graph_mode} graphs{together}): {text}", flush=True)
     if args.vs_reference:
         for benchmark in args.sets:
             ref = measure_reference(args.vs_reference, benchmark, args.reference_steps)

@@ -267,7 +267,7 @@ def scene_records(todo: Sequence[Scene], config: PhysicsConfig) -> list[Path] | 
     device = warp.get_preferred_device()
     common = (
         # Whether (and how many per call) the scenes run side by side selects no module.
-        dataclasses.astuple(dataclasses.replace(config, concurrent_scenes=False, scenes_per_call=None)),
+        dataclasses.astuple(config.physics_only()),
         caches.sources_digest(),
         warp.__version__,
         mujoco.__version__,

@@ -212,6 +212,12 @@ class PhysicsConfig:
         if per_call is not None and not (_is_int(per_call) and per_call >= 1):
             raise ValueError(f"scenes_per_call must be a positive int or None, not {per_call!r}")
 
+    def physics_only(self) -> PhysicsConfig:
+        """This config without the settings that only choose how the scenes' Warp calls are
+        issued (side by side, how many per call): what kernel modules and settled states depend
+        on, for their cache keys."""
+        return dataclasses.replace(self, concurrent_scenes=None, scenes_per_call=None)
+
 
 # Set to "0": `concurrent_scenes=None` resolves to off (`runs_scenes_together`).
 CONCURRENT_SCENES_VARIABLE = "MWJAX_CONCURRENT_SCENES"
@@ -237,17 +243,23 @@ def scenes_together_by_default(config: PhysicsConfig, platform: str, devices: in
     return platform == "gpu" and devices == 1 and _warp_captures_graphs(config)
 
 
+# Graph modes in which Warp captures the CUDA graphs itself: by buffer addresses, or once against
+# staging buffers (the staged modes).
+_OWN_GRAPH_MODES = (None, "warp")
+_STAGED_GRAPH_MODES = ("warp_staged", "warp_staged_ex")
+
+
 def _warp_captures_graphs(config: PhysicsConfig) -> bool:
     """Whether Warp captures the CUDA graphs itself on a GPU (its "warp" mode), as the scenes'
     streams do by default: not in the staged modes, without capture or under `mwjax.determinism`."""
-    return config.graph_mode in (None, "warp") and not determinism.enabled()
+    return config.graph_mode in _OWN_GRAPH_MODES and not determinism.enabled()
 
 
 def _streams_capture(config: PhysicsConfig) -> bool:
     """Whether the scenes' streams can run in `config`'s graph mode: Warp's own ("warp"), or a
     staged mode, which `mwjax.scene_streams` stages per scene call as Warp does per call (asked
     for, not a default: not yet measured on a GPU)."""
-    return config.graph_mode in (None, "warp", "warp_staged", "warp_staged_ex") and not determinism.enabled()
+    return config.graph_mode in _OWN_GRAPH_MODES + _STAGED_GRAPH_MODES and not determinism.enabled()
 
 
 def _is_int(value: object) -> bool:

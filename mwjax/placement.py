@@ -135,7 +135,7 @@ def with_settled_variants(
         key = (
             group.scene,
             group.mocap_bodies,
-            dataclasses.replace(physics.config, concurrent_scenes=None, scenes_per_call=None),
+            physics.config.physics_only(),
             tuple((rows[i].spec.name, v.tobytes()) for i, v in zip(members, vecs, strict=True)),
         )
         if key not in _SETTLED_PER_VARIANT:

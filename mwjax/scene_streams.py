@@ -443,12 +443,11 @@ def _run_on_streams(site: _Site, frame: Any, inputs: int, outputs: int) -> None:
             if stage is None:
                 args = _arguments(call, _buffers(inputs, i0, i1), _buffers(outputs, o0, o1), device)
                 with wp.ScopedDevice(device), wp.ScopedStream(stream, sync_enter=False):
-                    stage = _staged(call[0], args)
-                stage.copy_in.run(ins, device, stream)
+                    stage = site.stages[k][ordinal] = _staged(call[0], args)
+            stage.copy_in.run(ins, device, stream)
+            if stage.capture is None:  # the first call, or one whose capture failed
                 stage.capture = _capture(call, stage.args, device, stream)
-                site.stages[k][ordinal] = stage  # kept once captured: a failed capture retries
             else:
-                stage.copy_in.run(ins, device, stream)
                 _launch(stage.capture, stream)
             stage.copy_out.run(outs, device, stream)
         else:

@@ -771,8 +771,9 @@ def train(
     carry, n, chunk_s = loop.carry, loop.n, loop.chunk_s
     train_s = time.perf_counter() - start
     t0 = time.perf_counter()
-    result = trainer.evaluator(eval_episodes)((carry.params, carry.norm), jax.random.key(config.seed + 1000))
-    success = np.asarray(result.success_rate)
+    key = jax.random.key(config.seed + 1000)
+    with progress.phase(f"evaluating: {eval_episodes} episodes per task"):
+        success = np.asarray(trainer.evaluator(eval_episodes)((carry.params, carry.norm), key).success_rate)
     split = {}
     if time_learner and chunk_s:  # chunk_s is 0 if the only chunk included the compile
         learner_s = trainer.learner_seconds(carry, n)
@@ -849,9 +850,10 @@ def train_seeds(
     t0 = time.perf_counter()
     carry = loop.carry
     keys = jnp.stack([jax.random.key(seed + 1000) for seed in seeds])
-    success = np.asarray(
-        trainer.evaluator(eval_episodes, stacked=True)((carry.params, carry.norm), keys).success_rate
-    )
+    with progress.phase(f"evaluating {len(seeds)} seeds: {eval_episodes} episodes per task"):
+        success = np.asarray(
+            trainer.evaluator(eval_episodes, stacked=True)((carry.params, carry.norm), keys).success_rate
+        )
     eval_s = time.perf_counter() - t0
     return [
         {

@@ -69,3 +69,14 @@ def test_scenes_in_turn_by_the_environment_are_labelled(throughput, monkeypatch)
     monkeypatch.setenv("MWJAX_CONCURRENT_SCENES", "0")
     labels = throughput.deviations(500, True, None, mwjax.PhysicsConfig(), "gpu")
     assert labels == ["concurrent_scenes=False"]
+
+
+def test_the_compile_guard_counts_module_folders_not_build_records(throughput, monkeypatch, tmp_path):
+    import warp
+
+    monkeypatch.setattr(warp.config, "kernel_cache_dir", str(tmp_path))
+    (tmp_path / "wp_module_a").mkdir()
+    (tmp_path / "mwjax-built-0123456789abcdef0123").touch()  # a finished scene build's record
+    assert throughput.warp_kernel_modules() == 1
+    (tmp_path / "wp_module_b").mkdir()
+    assert throughput.warp_kernel_modules() == 2

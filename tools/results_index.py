@@ -120,7 +120,14 @@ def _what(files: list[Path], data: dict) -> str:
                 else f"reference {ref['benchmark']} ({ref['num_envs']} envs): {ref['env_steps_per_s']:,.0f}"
             )
         timed = "timed after a warm-up rollout" if _warmed_up(data, rows) else "the first rollout timed"
-        return f"env steps/s, {rows[0]['steps_per_rollout']}-step rollouts, {timed}: " + "; ".join(parts)
+        protocol = rows[0].get("protocol") or ""
+        # A staggered row's label says more than its rollout length: episodes start anywhere.
+        window = (
+            protocol.removeprefix("labelled: ")
+            if "staggered" in protocol
+            else f"{rows[0]['steps_per_rollout']}-step rollouts"
+        )
+        return f"env steps/s, {window}, {timed}: " + "; ".join(parts)
     if "mean_success_rate" in data and "set" in data:
         return (
             f"{data['set']} scripted experts: mean success {data['mean_success_rate']:.3f} "

@@ -258,7 +258,7 @@ def _warp_captures_graphs(config: PhysicsConfig) -> bool:
 def _streams_capture(config: PhysicsConfig) -> bool:
     """Whether the scenes' streams can run in `config`'s graph mode: Warp's own ("warp"), or a
     staged mode, which `mwjax.scene_streams` stages per scene call as Warp does per call (asked
-    for, not a default: not yet measured on a GPU)."""
+    for, not a default: measured on MT10, not yet on MT50)."""
     return config.graph_mode in _OWN_GRAPH_MODES + _STAGED_GRAPH_MODES and not determinism.enabled()
 
 

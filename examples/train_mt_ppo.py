@@ -679,10 +679,27 @@ def _learner(carry: Any) -> tuple:
 
 
 def save_checkpoint(stem: str | Path, carry: Any, updates: int, curve: list[dict]) -> None:
-    """`stem.npz` (the learner's arrays) and `stem.json` (update count and curve so far)."""
-    leaves = jax.tree.leaves(_learner(carry))
-    np.savez(f"{stem}.npz", *[np.asarray(x) for x in leaves])
-    Path(f"{stem}.json").write_text(json.dumps({"updates": updates, "curve": curve}))
+    """`stem.npz` (the learner's arrays, the update count and curve so far) and `stem.json` (the
+    count and curve, to read). Each file is written whole beside its place and then moved there,
+    so a run stopped mid-save, or a copy taken while it saves, finds the previous checkpoint
+    intact; the npz alone is what resuming reads, so the two can never disagree."""
+    meta = json.dumps({"updates": updates, "curve": curve})
+    leaves = [np.asarray(x) for x in jax.tree.leaves(_learner(carry))]
+    _write_atomically(Path(f"{stem}.npz"), lambda file: np.savez(file, *leaves, meta=np.array(meta)))
+    _write_atomically(Path(f"{stem}.json"), lambda file: file.write(meta.encode()))
+
+
+def _write_atomically(path: Path, write: Callable[[Any], None]) -> None:
+    """`write(file)` into a temporary file in `path`'s folder, then that file moved to `path`."""
+    with tempfile.NamedTemporaryFile(dir=path.parent, prefix=f".{path.name}.", delete=False) as file:
+        partial = Path(file.name)
+        try:
+            write(file)
+        except BaseException:
+            file.close()
+            partial.unlink(missing_ok=True)
+            raise
+    os.replace(partial, path)
 
 
 def restore_checkpoint(stem: str | Path, template: Any) -> tuple[Any, int, list[dict]]:
@@ -690,8 +707,10 @@ def restore_checkpoint(stem: str | Path, template: Any) -> tuple[Any, int, list[
     placed as the template's is."""
     like = jax.tree.leaves(_learner(template))
     with np.load(f"{stem}.npz") as data:
-        if len(data.files) != len(like):
-            raise ValueError(f"{stem}.npz holds {len(data.files)} arrays, this run's learner {len(like)}")
+        arrays = [name for name in data.files if name.startswith("arr_")]
+        if len(arrays) != len(like):
+            raise ValueError(f"{stem}.npz holds {len(arrays)} arrays, this run's learner {len(like)}")
+        meta = json.loads(str(data["meta"]))
         # An uncommitted template leaf (a single-device run's) stays uncommitted: `train_chunk`
         # compiled for the template would compile again for a carry that mixes the two.
         leaves = [
@@ -702,7 +721,6 @@ def restore_checkpoint(stem: str | Path, template: Any) -> tuple[Any, int, list[
         if saved.shape != expected.shape:
             raise ValueError(f"{stem}.npz is another configuration's ({saved.shape} vs {expected.shape})")
     params, opt_state, norm, key = jax.tree.unflatten(jax.tree.structure(_learner(template)), leaves)
-    meta = json.loads(Path(f"{stem}.json").read_text())
     key = jax.random.wrap_key_data(key)
     carry = template._replace(params=params, opt_state=opt_state, norm=norm, key=key)
     return carry, meta["updates"], meta["curve"]
@@ -723,7 +741,8 @@ def start_or_resume(
 
     if checkpoint is None or not Path(f"{checkpoint}.npz").exists():
         return fresh(0), 0, ([] if isinstance(seed, int) else [[] for _ in seeds])
-    meta = json.loads(Path(f"{checkpoint}.json").read_text())
+    with np.load(f"{checkpoint}.npz") as data:
+        meta = json.loads(str(data["meta"]))
     if not isinstance(seed, int) and len(meta["curve"]) != len(seeds):
         raise ValueError(f"{checkpoint} holds {len(meta['curve'])} seeds' runs, this run has {len(seeds)}")
     carry, updates, curve = restore_checkpoint(checkpoint, fresh(meta["updates"]))

@@ -1,8 +1,10 @@
 """CPU smoke test of the jitted multi-task PPO loop (`examples/train_mt_ppo.py`); the real run is
 a GPU benchmark. Two tasks of one scene, a tiny batch and 10-step episodes keep it short."""
 
+import contextlib
 import dataclasses
 import json
+import os
 import sys
 import time
 from pathlib import Path
@@ -88,6 +90,29 @@ def test_checkpoints_round_trip(trainer, tmp_path):
     other = ppo.Trainer(dataclasses.replace(CONFIG, hidden=(8, 8, 8)))
     with pytest.raises(ValueError, match="another configuration's"):
         ppo.restore_checkpoint(tmp_path / "ckpt", other.init(jax.random.key(4)))
+
+
+def test_a_save_cut_short_leaves_the_previous_checkpoint_whole(trainer, tmp_path, monkeypatch):
+    """A run stopped while it saves (or a copy taken meanwhile) must still find a checkpoint to
+    resume from: the one saved before, not a truncated file."""
+    carry = trainer.init(jax.random.key(3))
+    ppo.save_checkpoint(tmp_path / "ckpt", carry, 2, [{"updates": 2}])
+    saved = (tmp_path / "ckpt.npz").read_bytes()
+
+    def cut_short(file, *arrays, **named):
+        with contextlib.ExitStack() as stack:
+            if isinstance(file, (str, os.PathLike)):
+                file = stack.enter_context(open(file, "wb"))
+            file.write(saved[: len(saved) // 2])
+            raise KeyboardInterrupt
+
+    monkeypatch.setattr(np, "savez", cut_short)
+    with pytest.raises(KeyboardInterrupt):
+        ppo.save_checkpoint(tmp_path / "ckpt", carry, 4, [{"updates": 2}, {"updates": 4}])
+    monkeypatch.undo()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["ckpt.json", "ckpt.npz"]
+    _, updates, curve = ppo.restore_checkpoint(tmp_path / "ckpt", trainer.init(jax.random.key(4)))
+    assert updates == 2 and curve == [{"updates": 2}]
 
 
 def test_a_chunk_whose_loss_is_not_finite_stops_the_run_before_its_checkpoint(trainer):

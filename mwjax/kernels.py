@@ -266,7 +266,7 @@ def scene_records(todo: Sequence[Scene], config: PhysicsConfig) -> list[Path] | 
         return None
     device = warp.get_preferred_device()
     common = (
-        # Whether (and how many per call) the scenes run side by side selects no module.
+        # How the scenes' calls are issued (side by side, how many per call, graph mode) selects no module.
         dataclasses.astuple(config.physics_only()),
         caches.sources_digest(),
         warp.__version__,

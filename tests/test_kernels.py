@@ -334,4 +334,5 @@ def test_records_name_what_selects_the_modules():
     assert default is not None
     assert kernels.scene_records(todo, mwjax.PhysicsConfig(concurrent_scenes=True)) == default
     assert kernels.scene_records(todo, mwjax.PhysicsConfig(scenes_per_call=2)) == default
+    assert kernels.scene_records(todo, mwjax.PhysicsConfig(graph_mode="warp_staged_ex")) == default
     assert kernels.scene_records(todo, mwjax.PhysicsConfig(substeps=4)) != default

@@ -136,6 +136,11 @@ class Env:
             variants, self.task_list, self.task_ids, self.goal_sampling, envs_per_task, n_variants
         )
         self.sawyer = Sawyer.of([r.spec for r in rows], envs_per_task, self.partially_observable)
+        # Each task's frame observation, jitted: traced once per batch shape, then reused by the
+        # reset, the step and the step's autoreset (and lowered once per program).
+        self._frame_obs = tuple(
+            _jitted_frame_obs(r.spec, self.physics.groups[r.group].model) for r in self._rows
+        )
 
     def _configure(self, config: EnvConfig) -> None:
         """The trace-time settings (`_TRACE_TIME_FIELDS`) from `config`."""
@@ -383,15 +388,20 @@ class Env:
         kin = self._kinematics(datas)
 
         curr_parts, target_parts, constant_parts = [], [], []
-        for rows, placed, rows_settled in zip(self._rows, placements, settled, strict=True):
+        for i, (rows, placed, rows_settled) in enumerate(zip(self._rows, placements, settled, strict=True)):
             frames = kin[rows.group].rows(rows.local_start, rows.local_start + rows.size)
             model = self.physics.groups[rows.group].model
 
             def one(
-                k: Kinematics, p: Placement, s: Kinematics, rows: TaskRows = rows, model: Any = model
+                k: Kinematics,
+                p: Placement,
+                s: Kinematics,
+                rows: TaskRows = rows,
+                model: Any = model,
+                obs_fn: Callable[[Kinematics], Array] = self._frame_obs[i],
             ) -> tuple[Array, dict[str, Array]]:
                 frame = Frame(model, k)
-                return frame_obs(rows.spec, frame), rows.spec.constants(frame, p, Frame(model, s))
+                return obs_fn(k), rows.spec.constants(frame, p, Frame(model, s))
 
             curr, constants = jax.vmap(one)(frames, placed, rows_settled.kin)
             curr_parts.append(curr)
@@ -480,12 +490,9 @@ class Env:
     ) -> tuple[Array, Array, dict[str, Array], dict[str, Array]]:
         """Obs, reward and info after a step, and the constants with first-step latches applied."""
         curr_parts = []
-        for rows in self._rows:
-            model = self.physics.groups[rows.group].model
+        for rows, obs_fn in zip(self._rows, self._frame_obs, strict=True):
             frames = kin[rows.group].rows(rows.local_start, rows.local_start + rows.size)
-            curr_parts.append(
-                jax.vmap(lambda k, m=model, spec=rows.spec: frame_obs(spec, Frame(m, k)))(frames)
-            )
+            curr_parts.append(jax.vmap(obs_fn)(frames))
         curr = jnp.concatenate(curr_parts)
         obs = self.sawyer.clip(self.sawyer.observation(curr, Observation(state.obs).frame, state.target_pos))
 
@@ -525,6 +532,16 @@ class Env:
         info["success"] = info["success"] > 0
         constants = {k: jnp.concatenate([c[k] for c in constant_parts]) for k in state.constants}
         return obs, jnp.concatenate(rewards).astype(jnp.float32), info, constants
+
+
+def _jitted_frame_obs(spec: TaskSpec, model: Any) -> Callable[[Kinematics], Array]:
+    """One env's frame observation (`frame_obs`) from its kinematics, jitted (a plain function:
+    JAX would name a partial by printing what it holds)."""
+
+    def frame_observation(k: Kinematics) -> Array:
+        return frame_obs(spec, Frame(model, k))
+
+    return jax.jit(frame_observation)
 
 
 def _merge_constants(parts: list[dict[str, Array]], sizes: list[int]) -> dict[str, Array]:

@@ -110,6 +110,7 @@ def set_object_xyz(settled: Frame, pos: Array, qpos_adr: int = 9, qvel_adr: int 
     return qpos, qvel
 
 
+@jax.jit  # ~20 small ops: traced once per shape, not at each of a set's ~50 uses per program
 def quat_from_xmat(mat: Array) -> Array:
     """scipy's `Rotation.from_matrix(mat).as_quat()` (x, y, z, w), with scipy's sign choice.
 

@@ -216,8 +216,7 @@ class PhysicsConfig:
         """This config without the settings that only choose how the scenes' Warp calls are
         issued (side by side, how many per call, who captures their CUDA graphs): what kernel
         modules and settled states depend on, for their cache keys. A graph replays the kernels
-        it captured, so the graph mode selects no module (an adapter env in Warp's staged mode,
-        made after a jitted env's build, found all 74 of MT50's modules built)."""
+        it captured, so the graph mode selects no module."""
         return dataclasses.replace(self, concurrent_scenes=None, scenes_per_call=None, graph_mode=None)
 
 

@@ -62,6 +62,7 @@ from mwjax.config import EnvConfig
 from mwjax.evaluation import evaluator
 from mwjax.observation import OBS_SIZE
 from mwjax.sharding import AXIS
+from mwjax.stored_results import write_atomically
 
 RESULTS = Path(__file__).parents[1] / "benchmarks" / "results" / "train"
 Array = jax.Array
@@ -685,21 +686,8 @@ def save_checkpoint(stem: str | Path, carry: Any, updates: int, curve: list[dict
     intact; the npz alone is what resuming reads, so the two can never disagree."""
     meta = json.dumps({"updates": updates, "curve": curve})
     leaves = [np.asarray(x) for x in jax.tree.leaves(_learner(carry))]
-    _write_atomically(Path(f"{stem}.npz"), lambda file: np.savez(file, *leaves, meta=np.array(meta)))
-    _write_atomically(Path(f"{stem}.json"), lambda file: file.write(meta.encode()))
-
-
-def _write_atomically(path: Path, write: Callable[[Any], None]) -> None:
-    """`write(file)` into a temporary file in `path`'s folder, then that file moved to `path`."""
-    with tempfile.NamedTemporaryFile(dir=path.parent, prefix=f".{path.name}.", delete=False) as file:
-        partial = Path(file.name)
-        try:
-            write(file)
-        except BaseException:
-            file.close()
-            partial.unlink(missing_ok=True)
-            raise
-    os.replace(partial, path)
+    write_atomically(Path(f"{stem}.npz"), lambda file: np.savez(file, *leaves, meta=np.array(meta)))
+    write_atomically(Path(f"{stem}.json"), lambda file: file.write(meta.encode()))
 
 
 def restore_checkpoint(stem: str | Path, template: Any) -> tuple[Any, int, list[dict]]:

@@ -388,7 +388,8 @@ class Env:
         kin = self._kinematics(datas)
 
         curr_parts, target_parts, constant_parts = [], [], []
-        for i, (rows, placed, rows_settled) in enumerate(zip(self._rows, placements, settled, strict=True)):
+        parts = zip(self._rows, placements, settled, self._frame_obs, strict=True)
+        for rows, placed, rows_settled, rows_obs in parts:
             frames = kin[rows.group].rows(rows.local_start, rows.local_start + rows.size)
             model = self.physics.groups[rows.group].model
 
@@ -398,7 +399,7 @@ class Env:
                 s: Kinematics,
                 rows: TaskRows = rows,
                 model: Any = model,
-                obs_fn: Callable[[Kinematics], Array] = self._frame_obs[i],
+                obs_fn: Callable[[Kinematics], Array] = rows_obs,
             ) -> tuple[Array, dict[str, Array]]:
                 frame = Frame(model, k)
                 return obs_fn(k), rows.spec.constants(frame, p, Frame(model, s))

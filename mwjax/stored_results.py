@@ -25,8 +25,9 @@ import importlib.metadata
 import os
 import tempfile
 import threading
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import IO, Any
 
 import jax
 import jax.numpy as jnp
@@ -117,18 +118,28 @@ def _load(path: Path, lowered: Any) -> Any | None:
 
 def _store(path: Path, result: Any) -> None:
     """Write `result`'s leaves to `path` atomically (another process may write the same file)."""
-    leaves = [np.asarray(leaf) for leaf in jax.tree.leaves(result)]
-    partial: Path | None = None
+    leaves = {f"leaf{i}": np.asarray(leaf) for i, leaf in enumerate(jax.tree.leaves(result))}
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
-        with tempfile.NamedTemporaryFile(dir=path.parent, suffix=".tmp", delete=False) as file:
-            partial = Path(file.name)
-            np.savez(file, **{f"leaf{i}": leaf for i, leaf in enumerate(leaves)})
-        os.replace(partial, path)
+        write_atomically(path, lambda file: np.savez(file, **leaves))
         _trim(path.parent)
     except OSError:  # a read-only or full disk: the next process computes it again
-        if partial is not None:
-            partial.unlink(missing_ok=True)
+        pass
+
+
+def write_atomically(path: Path, write: Callable[[IO[bytes]], object]) -> None:
+    """`write(file)` into a temporary file in `path`'s folder, then that file moved to `path`:
+    a reader, another writer or a process stopped mid-write never leaves or finds half a file
+    there. The temporary file is removed if writing or moving it fails."""
+    file = tempfile.NamedTemporaryFile(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp", delete=False)
+    partial = Path(file.name)
+    try:
+        with file:
+            write(file)
+        os.replace(partial, path)
+    except BaseException:
+        partial.unlink(missing_ok=True)
+        raise
 
 
 def _trim(folder: Path) -> None:

@@ -698,7 +698,7 @@ def restore_checkpoint(stem: str | Path, template: Any) -> tuple[Any, int, list[
         arrays = [name for name in data.files if name.startswith("arr_")]
         if len(arrays) != len(like):
             raise ValueError(f"{stem}.npz holds {len(arrays)} arrays, this run's learner {len(like)}")
-        meta = json.loads(str(data["meta"]))
+        meta = _checkpoint_meta(stem, data)
         # An uncommitted template leaf (a single-device run's) stays uncommitted: `train_chunk`
         # compiled for the template would compile again for a carry that mixes the two.
         leaves = [
@@ -712,6 +712,14 @@ def restore_checkpoint(stem: str | Path, template: Any) -> tuple[Any, int, list[
     key = jax.random.wrap_key_data(key)
     carry = template._replace(params=params, opt_state=opt_state, norm=norm, key=key)
     return carry, meta["updates"], meta["curve"]
+
+
+def _checkpoint_meta(stem: str | Path, data: Any) -> dict:
+    """The update count and curve of the checkpoint whose open npz is `data`: saved in it, or,
+    by a version that saved them only beside it, in `stem.json`."""
+    if "meta" in data.files:
+        return json.loads(str(data["meta"]))
+    return json.loads(Path(f"{stem}.json").read_text())
 
 
 def start_or_resume(
@@ -730,7 +738,7 @@ def start_or_resume(
     if checkpoint is None or not Path(f"{checkpoint}.npz").exists():
         return fresh(0), 0, ([] if isinstance(seed, int) else [[] for _ in seeds])
     with np.load(f"{checkpoint}.npz") as data:
-        meta = json.loads(str(data["meta"]))
+        meta = _checkpoint_meta(checkpoint, data)
     if not isinstance(seed, int) and len(meta["curve"]) != len(seeds):
         raise ValueError(f"{checkpoint} holds {len(meta['curve'])} seeds' runs, this run has {len(seeds)}")
     carry, updates, curve = restore_checkpoint(checkpoint, fresh(meta["updates"]))

@@ -115,6 +115,17 @@ def test_a_save_cut_short_leaves_the_previous_checkpoint_whole(trainer, tmp_path
     assert updates == 2 and curve == [{"updates": 2}]
 
 
+def test_a_checkpoint_saved_before_its_npz_held_the_curve_still_resumes(trainer, tmp_path):
+    """Checkpoints of earlier versions kept the update count and curve only in the JSON."""
+    carry = trainer.init(jax.random.key(3))
+    ppo.save_checkpoint(tmp_path / "ckpt", carry, 2, [{"updates": 2}])
+    with np.load(tmp_path / "ckpt.npz") as data:
+        arrays = {name: data[name] for name in data.files if name != "meta"}
+    np.savez(tmp_path / "ckpt.npz", **arrays)
+    _, updates, curve = ppo.restore_checkpoint(tmp_path / "ckpt", trainer.init(jax.random.key(4)))
+    assert updates == 2 and curve == [{"updates": 2}]
+
+
 def test_a_chunk_whose_loss_is_not_finite_stops_the_run_before_its_checkpoint(trainer):
     """A learner gone NaN (here its exploration scale) stops the chunk loop with a clear error
     instead of training on for the rest of the budget; the caller saves no checkpoint of it."""

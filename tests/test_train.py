@@ -148,6 +148,12 @@ def test_train_resumes_from_its_checkpoint(tmp_path):
     assert (
         second["curve"][0] == first["curve"][0] and second["curve"][1]["wall_s"] > first["curve"][0]["wall_s"]
     )
+    # A run lost in its evaluation: the same stem with `max_updates` at the checkpoint's count
+    # trains no further and evaluates the saved learner as the lost run would have.
+    again = ppo.train(CONFIG, 60.0, log_every=1, max_updates=2, eval_episodes=1, checkpoint=stem)
+    assert again["curve"] == second["curve"]
+    assert again["eval_success_per_task"] == second["eval_success_per_task"]
+    assert jax.tree.all(jax.tree.map(np.array_equal, again["params"], second["params"]))
 
 
 def test_the_trained_policy_runs_through_the_evaluator(trainer):

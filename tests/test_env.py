@@ -134,7 +134,7 @@ def test_carried_state_steps_as_whole_data(env, episode):
 @pytest.mark.slow
 def test_carried_state_steps_as_whole_data_in_every_mt50_scene():
     """The same over all 36 of MT50's scenes and 40 random steps: contacts, grasps and the
-    colliders of every scene (~3 minutes on 2 cores)."""
+    colliders of every scene (~4 minutes on 2 cores)."""
     mt50 = mwjax.make(benchmarks.parse_tasks("MT50"), envs_per_task=2, seed=5)
     start = jax.jit(mt50.reset)(jax.random.key(3))
     _assert_carried_state_steps_as_whole_data(mt50, start, steps=40)

@@ -321,6 +321,13 @@ class PhysicsState:
 _FIELDS = tuple(
     f.name for f in dataclasses.fields(PhysicsState) if f.name not in ("overflow", "rows_needed", "reset")
 )
+# What a staged scene call copies in and out at every call (`scene_streams.concurrently`), rather
+# than all of `mjx.Data` (~46 KB per env, ~5 KB of it these): the state the next call reads, the
+# overflow flags (cleared before each step) and what `_step_rows` reads of a call's result (`qacc`
+# for the divergence check, `nefc` for the rows needed). Warp's step recomputes the rest before
+# reading it (`tests/test_env.py::test_carried_state_steps_as_whole_data`), so what a staging
+# buffer keeps from the last call serves as well as a copy.
+_LIVE = frozenset(_FIELDS) | {"overflow", "qacc", "nefc"}
 # Fields no Meta-World scene has entries in (no activations, delays, plugins or user data): a
 # state carries None for them rather than zero-size arrays (`mwjax.warp_empty_args` says why);
 # the data rebuilt from `mjx.make_data` at each step has them anyway.
@@ -466,7 +473,9 @@ class Physics:
 
     def _step_all(self, states: tuple[PhysicsState, ...]) -> tuple[PhysicsState, ...]:
         """Every group stepped with fresh poses, the groups' Warp calls issued together."""
-        issue = functools.partial(scene_streams.concurrently, per_call=self.config.scenes_per_call)
+        issue = functools.partial(
+            scene_streams.concurrently, per_call=self.config.scenes_per_call, live=_LIVE
+        )
         return self._step_rows(tuple(range(len(states))), states, True, issue)
 
     def _step_rows(

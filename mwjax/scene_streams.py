@@ -80,6 +80,8 @@ class _Site:
     calls: list[tuple[ffi.FfiCallable, int]]
     inputs: list[tuple[int, int]]
     outputs: list[tuple[int, int]]
+    # In a staged mode, the arguments copied at every call (None: those Warp's staged mode copies).
+    live: frozenset[str] | None
     # Per call, its captured graphs by buffer addresses, least recently used first.
     graphs: list[collections.OrderedDict] = dataclasses.field(init=False)
     # Per call in a staged graph mode, its capture against staging buffers by device ordinal.
@@ -132,12 +134,14 @@ class _Stage:
     capture: Any = None
 
 
-def _staged(callable_: ffi.FfiCallable, args: list[Any]) -> _Stage:
+def _staged(callable_: ffi.FfiCallable, args: list[Any], live: frozenset[str] | None = None) -> _Stage:
     """`args` (a call's Warp arguments on XLA's buffers) moved onto staging buffers, as Warp's
     staged modes do (`FfiCallable._prepare_staging`): every non-empty array gets a staging copy;
     inputs named by the callable's `stage_in_argnames` (all if None) are copied in at every call,
     the others once, here; outputs named by `stage_out_argnames` are copied out at every call.
-    Runs on the current device and stream."""
+    With `live`, only the arguments it names among those are copied at every call: the others
+    keep, between calls, what the last call left on their staging buffers, and their XLA
+    outputs are left as XLA allocated them. Runs on the current device and stream."""
     staged, buffers = list(args), []
     copies: dict[bool, list[tuple[int, int, int]]] = {True: [], False: []}
     for i, arg in enumerate(args):
@@ -154,7 +158,7 @@ def _staged(callable_: ffi.FfiCallable, args: list[Any]) -> _Stage:
         ):
             if index is None:
                 continue
-            if names is None or name in names:
+            if (names is None or name in names) and (live is None or name in live):
                 copies[inward].append((index, buffer.ptr, size))
             else:
                 wp.copy(buffer, arg)
@@ -173,13 +177,19 @@ _callables: dict[str, ffi.FfiCallable] = {}
 
 
 def concurrently(
-    fns: Sequence[Callable[[Any], Any]], args: Sequence[Any], per_call: int | None = None
+    fns: Sequence[Callable[[Any], Any]],
+    args: Sequence[Any],
+    per_call: int | None = None,
+    live: frozenset[str] | None = None,
 ) -> list[Any]:
     """`[fn(arg) for fn, arg in zip(fns, args)]`, with the Warp calls the functions make issued
     together: each round of calls (every function's first, then every second, ...) as one FFI
     call that runs them side by side (see the module's docstring), or, with `per_call`, as calls
     of near-equal size of at most `per_call` functions each, one after another. Warp calls inside
-    loops or conditionals of a function are not supported (an error says so)."""
+    loops or conditionals of a function are not supported (an error says so). `live` names the
+    Warp arguments that a staged call copies in and out at every call (`_staged`): those whose
+    values the calls' results depend on and the caller reads; None copies what Warp's staged
+    mode copies."""
     _register_target()
     runs, trees = [], []
     for fn, arg in zip(fns, args, strict=True):
@@ -192,7 +202,7 @@ def concurrently(
         order = sorted(pending)
         outputs = []
         for part in _parts(order, per_call or len(order)):
-            outputs += _combined_call([pending[i] for i in part])
+            outputs += _combined_call([pending[i] for i in part], live)
         pending = {i: _next_call(runs[i], out, results, i) for i, out in zip(order, outputs, strict=True)}
     return [jax.tree.unflatten(tree, leaves) for tree, leaves in zip(trees, results, strict=True)]
 
@@ -307,7 +317,7 @@ def _warp_call(eqn: Any, operands: list[Any]) -> _Call:
     return _Call(_warp_callable(params["target_name"]), int(call_id), operands, out_types, aliases)
 
 
-def _combined_call(calls: list[_Call]) -> list[list[Any]]:
+def _combined_call(calls: list[_Call], live: frozenset[str] | None) -> list[list[Any]]:
     operands: list[Any] = []
     out_types: list[jax.ShapeDtypeStruct] = []
     aliases: dict[int, int] = {}
@@ -320,11 +330,16 @@ def _combined_call(calls: list[_Call]) -> list[list[Any]]:
         out_types.extend(call.out_types)
     # The site's id names its Warp calls, whose own ids are stable across processes
     # (`mwjax.warp_call_ids`), so that the program stays in JAX's persistent cache.
+    # Only a staged call copies, so only there does `live` tell sites apart.
+    if not any(call.callable.graph_mode in _STAGED_MODES for call in calls):
+        live = None
     described = repr([(call.callable.name, call.call_id) for call in calls])
+    if live is not None:
+        described += repr(sorted(live))
     site = int.from_bytes(hashlib.blake2b(described.encode(), digest_size=8).digest(), "little") >> 1
     with _lock:
         if site not in _sites:
-            _sites[site] = _Site([(call.callable, call.call_id) for call in calls], inputs, outputs)
+            _sites[site] = _Site([(call.callable, call.call_id) for call in calls], inputs, outputs, live)
     flat = jax.ffi.ffi_call(_TARGET, out_types, input_output_aliases=aliases, has_side_effect=False)(
         *operands, site=np.int64(site)
     )
@@ -443,7 +458,7 @@ def _run_on_streams(site: _Site, frame: Any, inputs: int, outputs: int) -> None:
             if stage is None:
                 args = _arguments(call, _buffers(inputs, i0, i1), _buffers(outputs, o0, o1), device)
                 with wp.ScopedDevice(device), wp.ScopedStream(stream, sync_enter=False):
-                    stage = site.stages[k][ordinal] = _staged(call[0], args)
+                    stage = site.stages[k][ordinal] = _staged(call[0], args, site.live)
             stage.copy_in.run(ins, device, stream)
             if stage.capture is None:  # the first call, or one whose capture failed
                 stage.capture = _capture(call, stage.args, device, stream)

@@ -8,6 +8,7 @@ from __future__ import annotations
 import ctypes
 import functools
 import gc
+import inspect
 import weakref
 from typing import Any
 
@@ -206,6 +207,38 @@ def test_a_staged_scene_call_copies_what_warps_staged_mode_copies():
     assert stage.copy_in.sizes.tolist() == [16, 20]
     assert stage.copy_out.index.tolist() == [0]  # c, the first FFI output
     assert stage.copy_out.staging.tolist() == [stage.args[3].ptr] and stage.copy_out.sizes.tolist() == [20]
+
+
+def test_a_staged_call_with_live_arguments_copies_only_those_at_every_call():
+    """With `live`, a staged call copies only the live arguments at every call, among those Warp's
+    staged mode would: a named input that is not live is copied once, when staged, and a named
+    output that is not live is not copied out."""
+    callable_ = wp.jax_callable(
+        _noop,
+        num_outputs=2,
+        in_out_argnames=["c"],
+        stage_in_argnames=["a", "b", "c"],
+        stage_out_argnames=["c", "d"],
+        graph_mode=wp.JaxCallableGraphMode.WARP_STAGED_EX,
+    )
+    args = [wp.array(np.arange(4, dtype=np.float32) + 10 * i, device="cpu") for i in range(5)]
+    stage = scene_streams._staged(callable_, args, live=frozenset({"b", "c"}))
+    assert stage.copy_in.index.tolist() == [1, 3]  # b and c; a was copied once
+    np.testing.assert_array_equal(stage.args[0].numpy(), args[0].numpy())
+    assert stage.copy_out.index.tolist() == [0]  # c; d is not live
+    everything = scene_streams._staged(callable_, args)
+    assert everything.copy_in.index.tolist() == [0, 1, 3] and everything.copy_out.index.tolist() == [0, 1]
+
+
+def test_the_live_fields_of_a_physics_step_are_arguments_of_mjx_warps_step():
+    """A live name that MJX-Warp does not use (a field renamed in a new version) would silently
+    never be copied, and the staged step would run on a stale copy of that field."""
+    from mujoco.mjx.warp import forward
+
+    source = inspect.getsource(forward._step_jax_impl)
+    assert physics_module._LIVE >= set(physics_module._FIELDS)
+    missing = {name for name in physics_module._LIVE if f"'{name}'" not in source}
+    assert missing <= set(physics_module._EMPTY_IN_METAWORLD)  # never arrays in Meta-World's scenes
 
 
 @pytest.mark.parametrize("mode", ["warp_staged_ex", "warp_staged"])

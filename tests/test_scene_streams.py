@@ -133,15 +133,16 @@ def test_staged_scene_calls_replay_with_each_calls_inputs_on_the_gpu():
     """With the scenes side by side in Warp's staged mode (the Gymnasium adapter's), each scene
     call is captured once against staging buffers and replayed with every later call's inputs
     copied in: steps from new states, at new addresses, must be those of the side-by-side step in
-    Warp's own mode from the same states (to the atomics' last bits)."""
+    Warp's own mode from the same states (to the atomics' last bits), through autoresets too (a
+    staged call copies only the live state, the rest stays from its last call)."""
     tasks = ["pick-place-v3", "reach-v3", "door-open-v3"]
     modes = (None, "warp_staged_ex")
     configs = [mwjax.PhysicsConfig(concurrent_scenes=True, graph_mode=mode) for mode in modes]
-    envs = [mwjax.make(tasks, envs_per_task=16, physics=physics) for physics in configs]
+    envs = [mwjax.make(tasks, envs_per_task=16, physics=physics, max_episode_steps=4) for physics in configs]
     assert all(env.physics.concurrent_scenes for env in envs)
     steps = [jax.jit(env.step) for env in envs]
     state = jax.jit(envs[0].reset)(jax.random.key(0))
-    for key in jax.random.split(jax.random.key(1), 6):
+    for key in jax.random.split(jax.random.key(1), 10):
         action = jax.random.uniform(key, (envs[0].num_envs, 4), minval=-1.0, maxval=1.0)
         expected, replayed = (step(state, action) for step in steps)
         np.testing.assert_allclose(np.asarray(replayed.obs), np.asarray(expected.obs), atol=1e-4)

@@ -325,7 +325,7 @@ _FIELDS = tuple(
 # than all of `mjx.Data` (~46 KB per env, ~5 KB of it these): the state the next call reads, the
 # overflow flags (cleared before each step) and what `_step_rows` reads of a call's result (`qacc`
 # for the divergence check, `nefc` for the rows needed). Warp's step recomputes the rest before
-# reading it (`tests/test_env.py::test_carried_state_steps_as_whole_data`), so what a staging
+# reading it (`tests/test_env.py::test_carried_state_steps_as_whole_data*`), so what a staging
 # buffer keeps from the last call serves as well as a copy.
 _LIVE = frozenset(_FIELDS) | {"overflow", "qacc", "nefc"}
 # Fields no Meta-World scene has entries in (no activations, delays, plugins or user data): a

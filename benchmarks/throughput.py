@@ -226,7 +226,11 @@ def measure_adapter(
     """The Gymnasium adapter stepped from Python with `array_type` actions in and results out:
     "numpy" is what a Gymnasium user gets, "jax" (device arrays) isolates the host transfer.
     `graph_mode` is the adapter env's `PhysicsConfig.graph_mode` (None: the adapter's default),
-    `scenes` its `concurrent_scenes` / `scenes_per_call` settings (`scene_settings`)."""
+    `scenes` its `concurrent_scenes` / `scenes_per_call` settings (`scene_settings`).
+
+    The episodes are staggered as `--stagger` staggers the jitted rollout's, and a `steps`-step
+    window is timed after a `steps`-step warm-up: steps taken from reset, with the arm near its
+    start pose and no reset among them, cost the physics less than a long run's do."""
     n_tasks = len(task_names(tasks_arg(benchmark)))
     envs = make_vector(
         tasks_arg(benchmark),
@@ -236,13 +240,17 @@ def measure_adapter(
         physics=mwjax.PhysicsConfig(graph_mode=graph_mode, **scenes),
     )
     envs.reset(seed=0)
+    adapter = envs.unwrapped
+    adapter.state = staggered(adapter.state, adapter.env.max_episode_steps, jax.random.key(1))
     rng = np.random.default_rng(0)
-    actions = rng.uniform(-1, 1, size=(steps + 1, envs.num_envs, 4)).astype(np.float32)
+    actions = rng.uniform(-1, 1, size=(steps, envs.num_envs, 4)).astype(np.float32)
     if array_type == "jax":
         actions = jnp.asarray(actions)
-    jax.block_until_ready(envs.step(actions[0]))  # compile
+    for action in actions:  # the first step compiles
+        out = envs.step(action)
+    jax.block_until_ready(out)
     t0 = time.perf_counter()
-    for action in actions[1:]:
+    for action in actions:
         out = envs.step(action)
     jax.block_until_ready(out)
     return {
@@ -255,7 +263,13 @@ def adapter_row(benchmark: str, total: int, steps: int, graph_mode: str | None, 
     """The adapter's timing, each array type in a process of its own (Warp keeps an env's CUDA
     graphs for the life of its process), or the error that stopped it (out of device memory,
     say): recorded in the row, so the throughput rows measured before it are still written."""
-    row: dict = {"benchmark": benchmark, "num_envs": total, "adapter_steps": steps, "graph_mode": graph_mode}
+    row: dict = {
+        "benchmark": benchmark,
+        "num_envs": total,
+        "adapter_steps": steps,
+        "protocol": f"staggered episodes, {steps}-step window after a {steps}-step warm-up",
+        "graph_mode": graph_mode,
+    }
     for array_type in ("jax", "numpy"):
         try:
             row |= in_fresh_process(measure_adapter, benchmark, total, steps, array_type, graph_mode, scenes)
@@ -343,7 +357,12 @@ def main() -> None:
     parser.add_argument("--vs-reference", metavar="PYTHON", default=None, help="also time metaworld 3.1.1")
     parser.add_argument("--reference-steps", type=int, default=EPISODE)
     parser.add_argument("--adapter", action="store_true", help="also time the Gymnasium adapter")
-    parser.add_argument("--adapter-steps", type=int, default=50)
+    parser.add_argument(
+        "--adapter-steps",
+        type=int,
+        default=None,
+        help="the adapter's window (default: W of --stagger, else 100)",
+    )
     parser.add_argument(
         "--adapter-graph-modes",
         nargs="+",
@@ -392,8 +411,8 @@ def main() -> None:
             )
             for graph_mode in args.adapter_graph_modes if args.adapter else ():
                 mode = None if graph_mode == "default" else graph_mode
-                timing = adapter_row(benchmark, total - total % n_tasks, args.adapter_steps, mode, scenes)
-                adapter.append(timing)
+                window = args.adapter_steps or args.stagger or 100
+                timing = adapter_row(benchmark, total - total % n_tasks, window, mode, scenes)
                 if "error" in timing:
                     text = f"FAILED: {timing['error']}"
                 else:
@@ -401,6 +420,12 @@ def main() -> None:
                         f"{timing['adapter_numpy_env_steps_per_s']:>12,.0f} env steps/s with NumPy, "
                         f"{timing['adapter_jax_env_steps_per_s']:,.0f} with jax arrays"
                     )
+                    if row["env_steps_per_s"]:  # the adapter's share of the jitted rollout's rate
+                        timing["numpy_share_of_jitted"] = (
+                            timing["adapter_numpy_env_steps_per_s"] / row["env_steps_per_s"]
+                        )
+                        text += f" ({timing['numpy_share_of_jitted']:.0%} of the jitted rollout's with NumPy)"
+                adapter.append(timing)
                 together = ", scenes side by side" if timing.get("scenes_together") else ""
                 print(f"{'':>20} {'':>7}       adapter ({graph_mode} graphs{together}): {text}", flush=True)
     if args.vs_reference:

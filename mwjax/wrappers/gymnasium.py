@@ -161,6 +161,14 @@ class MwjaxVectorEnv(gym.vector.VectorEnv):
             raise RuntimeError("call reset() first")
         return self._state
 
+    @state.setter
+    def state(self, state: State) -> None:
+        """Continue from `state`, a core state of this env's batch (a saved one, or one changed
+        with `mwjax.env.staggered`, say). The next step donates it, as it does the adapter's own."""
+        if not isinstance(state, State) or state.obs.shape[:1] != (self.num_envs,):
+            raise ValueError(f"state must be a mwjax State of this env's {self.num_envs} envs")
+        self._state = state
+
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[Array, dict]:
         if options:
             raise ValueError(f"mwjax's vector env takes no reset options, got {sorted(options)}")

@@ -19,7 +19,8 @@ process per env through Gymnasium's AsyncVectorEnv, see `reference_throughput.py
 invocation and prints mwjax's best protocol rate over it per set. `--adapter` also times the
 Gymnasium adapter (`mwjax.make_vector`, one jitted call and a NumPy transfer per step) at the same
 batch sizes, with the run's `--concurrent-scenes` / `--scenes-per-call` (absent: the adapter's
-default, scenes in turn; `--concurrent-scenes on` runs its scenes side by side, staged).
+default, on one GPU its scenes side by side, staged), in staggered episodes: it times a window of
+`--adapter-steps` steps after a warm-up of as many, and records its share of the jitted rate.
 `--plot` saves the scaling curve (protocol rows only) as a PNG beside the JSON.
 
 On a GPU set XLA_PYTHON_CLIENT_MEM_FRACTION (~0.45) so JAX leaves Warp room.

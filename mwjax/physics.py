@@ -175,8 +175,8 @@ class PhysicsConfig:
     # capturing the graphs (`graph_mode` None or "warp", not under `mwjax.determinism`);
     # elsewhere one call per scene (`runs_scenes_together`). The cost: XLA compiles the step
     # longer (MT50's 1.9 times, with `scenes_per_call`; cached after the first run). True also
-    # runs with the staged graph modes (the Gymnasium adapter's), each scene call captured once
-    # against staging buffers.
+    # runs with the staged graph modes, each scene call captured once against staging buffers;
+    # the Gymnasium adapter asks for that on one GPU unless told otherwise.
     concurrent_scenes: bool | None = None
     # With the scenes side by side, at most this many scenes' Warp calls in one combined call; a
     # round's calls, as few as that allows and of near-equal size, run one after another. XLA's
@@ -258,8 +258,8 @@ def _warp_captures_graphs(config: PhysicsConfig) -> bool:
 
 def _streams_capture(config: PhysicsConfig) -> bool:
     """Whether the scenes' streams can run in `config`'s graph mode: Warp's own ("warp"), or a
-    staged mode, which `mwjax.scene_streams` stages per scene call as Warp does per call (asked
-    for, not a default: measured on MT10, not yet on MT50)."""
+    staged mode, which `mwjax.scene_streams` stages per scene call as Warp does per call (the
+    Gymnasium adapter's default on one GPU)."""
     return config.graph_mode in _OWN_GRAPH_MODES + _STAGED_GRAPH_MODES and not determinism.enabled()
 
 

@@ -3,6 +3,7 @@ observability, truncation, terminate_on_success, ML goal cycling, seeding, Gymna
 
 from __future__ import annotations
 
+import dataclasses
 import importlib.util
 
 import gymnasium as gym
@@ -116,6 +117,23 @@ def test_next_step_autoreset(next_step):
     assert not np.array_equal(obs, last)
     obs2, *_ = envs.step(actions)
     np.testing.assert_array_equal(obs2[:, 18:36], obs[:, :18])
+
+
+def test_the_adapter_continues_from_a_state_it_is_given(same_step):
+    """A state set on the adapter is where its next step starts (here every episode one step from
+    its end, as the throughput benchmark staggers them); anything but a state of its batch is refused."""
+    envs = same_step
+    envs.reset(seed=3)
+    adapter = envs.unwrapped
+    last_step = dataclasses.replace(adapter.state, steps=jnp.full_like(adapter.state.steps, HORIZON - 1))
+    adapter.state = last_step
+    _, _, _, truncated, info = envs.step(np.zeros((4, 4), np.float32))
+    assert truncated.all()
+    np.testing.assert_array_equal(info["final_info"]["episode"]["l"], [HORIZON] * 4)
+    with pytest.raises(ValueError, match="4 envs"):
+        adapter.state = dataclasses.replace(adapter.state, obs=adapter.state.obs[:2])
+    with pytest.raises(ValueError, match="4 envs"):
+        adapter.state = {"obs": np.zeros((4, 39))}
 
 
 def test_same_seed_gives_identical_observations(same_step):
@@ -239,7 +257,8 @@ def test_default_truncation_is_500():
 
 def test_the_adapter_uses_warp_staged_graphs_on_one_gpu_only(monkeypatch):
     """Where the caller leaves Warp's graph mode to MJX, the adapter asks for the staged mode on
-    one GPU (its Python-stepped calls then replay their graphs), and leaves it alone on the CPU,
+    one GPU (its Python-stepped calls then replay their graphs), with the scenes side by side
+    unless the caller or MWJAX_CONCURRENT_SCENES=0 chose otherwise, and leaves it alone on the CPU,
     over several devices, in the deterministic mode and where the caller chose a mode."""
     from types import SimpleNamespace
 
@@ -249,8 +268,18 @@ def test_the_adapter_uses_warp_staged_graphs_on_one_gpu_only(monkeypatch):
     gpu, cpu = SimpleNamespace(platform="gpu"), SimpleNamespace(platform="cpu")
     chosen = mwjax.PhysicsConfig(graph_mode="none", contacts_per_env=32)
     monkeypatch.setattr(adapter, "local_device", lambda: gpu)
+    monkeypatch.delenv("MWJAX_CONCURRENT_SCENES", raising=False)
     staged = adapter._adapter_physics(mwjax.PhysicsConfig(contacts_per_env=32), None)
-    assert staged == mwjax.PhysicsConfig(graph_mode="warp_staged_ex", contacts_per_env=32)
+    assert staged == mwjax.PhysicsConfig(
+        graph_mode="warp_staged_ex", contacts_per_env=32, concurrent_scenes=True
+    )
+    in_turn = mwjax.PhysicsConfig(concurrent_scenes=False)
+    assert adapter._adapter_physics(in_turn, None).concurrent_scenes is False
+    monkeypatch.setenv("MWJAX_CONCURRENT_SCENES", "0")
+    assert adapter._adapter_physics(None, None) == mwjax.PhysicsConfig(
+        graph_mode="warp_staged_ex", concurrent_scenes=False
+    )
+    monkeypatch.delenv("MWJAX_CONCURRENT_SCENES")
     assert adapter._adapter_physics(None, [gpu]).graph_mode == "warp_staged_ex"
     assert adapter._adapter_physics(None, [gpu, gpu]).graph_mode is None
     assert adapter._adapter_physics(None, [cpu]).graph_mode is None

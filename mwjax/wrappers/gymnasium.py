@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import dataclasses
 import importlib.util
+import os
 from collections.abc import Sequence
 from typing import Any
 
@@ -23,7 +24,7 @@ from gymnasium.vector import AutoresetMode
 from mwjax import benchmarks, determinism, rendering, warp_graphs
 from mwjax.config import MAX_EPISODE_STEPS, EnvConfig
 from mwjax.env import Env, State, make
-from mwjax.physics import PhysicsConfig, local_device
+from mwjax.physics import CONCURRENT_SCENES_VARIABLE, PhysicsConfig, local_device
 from mwjax.sharding import ShardedEnv
 
 Array = jax.Array
@@ -63,17 +64,25 @@ def _refuse_unsupported(options: dict[str, Any]) -> None:
 
 def _adapter_physics(physics: PhysicsConfig | None, devices: Sequence[jax.Device] | None) -> PhysicsConfig:
     """The adapter's physics: on one GPU, where Warp's graph mode is left to MJX, Warp's staged
-    mode. Stepped from Python, the adapter's calls get new buffers each time, so MJX's default
-    mode captures a new CUDA graph at every call and never replays one; the staged mode captures
-    each call once, against fixed staging buffers, and replays it (1.6x the env steps/s at
-    131,070 MT10 envs, with bounded memory; docs/performance.md). Not on the CPU (Warp has no
-    graphs there), over several devices (one graph per traced call would serve them all) or in
-    the deterministic mode (which launches kernels one by one to check their record buffers)."""
+    mode, with the scenes side by side unless the caller chose (`concurrent_scenes`, or
+    `MWJAX_CONCURRENT_SCENES=0`). Stepped from Python, the adapter's calls get new buffers each
+    time, so MJX's default mode captures a new CUDA graph at every call and never replays one; the
+    staged mode captures each call once, against fixed staging buffers, and replays it (1.6x the
+    env steps/s at 131,070 MT10 envs, with bounded memory), and side by side the scenes' staged
+    calls copy only the live state (1.8x again at 131,070 MT10 envs, 2.0x at 409,600 MT50 envs;
+    docs/performance.md). Not on the CPU (Warp has no graphs there), over several devices (one
+    graph per traced call would serve them all) or in the deterministic mode (which launches
+    kernels one by one to check their record buffers)."""
     config = physics or PhysicsConfig()
     if config.graph_mode is not None or determinism.enabled() or (devices is not None and len(devices) != 1):
         return config
     device = local_device() if devices is None else devices[0]
-    return dataclasses.replace(config, graph_mode="warp_staged_ex") if device.platform == "gpu" else config
+    if device.platform != "gpu":
+        return config
+    together = config.concurrent_scenes
+    if together is None:
+        together = os.environ.get(CONCURRENT_SCENES_VARIABLE, "1") != "0"
+    return dataclasses.replace(config, graph_mode="warp_staged_ex", concurrent_scenes=together)
 
 
 def _check_actions_dtype(dtype: Any) -> None:

@@ -145,12 +145,19 @@ def test_same_seed_gives_identical_observations(same_step):
 
 
 def test_bad_arguments_are_refused(same_step):
-    with pytest.raises(ValueError, match="shape"):
-        same_step.step(np.zeros((3, 4), np.float32))
-    with pytest.raises(ValueError, match="NaN"):
-        same_step.step(np.full((4, 4), np.nan, np.float32))
+    same_step.reset(seed=0)
+    # NumPy actions are checked on the host, jax arrays on the device: both refuse the same.
+    for xp, envs in ((np, same_step), (jnp, same_step.unwrapped)):
+        with pytest.raises(ValueError, match="shape"):
+            envs.step(xp.zeros((3, 4), np.float32))
+        with pytest.raises(ValueError, match="NaN"):
+            envs.step(xp.full((4, 4), np.nan, np.float32))
+        with pytest.raises(ValueError, match="NaN"):
+            envs.step(xp.full((4, 4), np.inf, np.float32))
+        with pytest.raises(ValueError, match="floating point"):
+            envs.step(xp.zeros((4, 4), np.int32))
     with pytest.raises(ValueError, match="floating point"):
-        same_step.step(np.zeros((4, 4), np.int64))
+        same_step.step([[None] * 4] * 4)
     with pytest.raises(ValueError, match="multiple"):
         gym.make_vec("mwjax/MT10", num_envs=15)
     for bad in (0, -10, 2.5, True):

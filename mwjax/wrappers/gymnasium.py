@@ -194,14 +194,17 @@ class MwjaxVectorEnv(gym.vector.VectorEnv):
         return self.observation(self._state.obs), {}
 
     def step(self, actions: Any) -> tuple[Array, Array, Array, Array, dict]:
-        actions = jnp.asarray(actions)
+        # Host actions are checked on the host; device arrays on the device, which waits for
+        # the steps already queued there.
+        xp = jnp if isinstance(actions, jax.Array) else np
+        actions = xp.asarray(actions)
         _check_actions_dtype(actions.dtype)
-        actions = actions.astype(jnp.float32)
+        actions = actions.astype(np.float32)
         if actions.shape != (self.num_envs, 4):
             raise ValueError(f"actions must have shape ({self.num_envs}, 4), got {actions.shape}")
-        if not bool(jnp.all(jnp.isfinite(actions))):
+        if not bool(xp.all(xp.isfinite(actions))):
             raise ValueError("actions contain NaN or inf")
-        self._state = state = self._step(self.state, actions)
+        self._state = state = self._step(self.state, jnp.asarray(actions))
         done = state.terminated | state.truncated
         values = {
             k: v for k, v in state.info.items() if k not in ("final_obs", "episode_return", "episode_length")
@@ -625,7 +628,7 @@ class NumpyVectorEnv(gym.vector.VectorWrapper):
         return jax.device_get(self.env.reset(seed=seed, options=options))
 
     def step(self, actions: Any) -> tuple[Any, Any, Any, Any, dict]:
-        return jax.device_get(self.env.step(jnp.asarray(actions)))
+        return jax.device_get(self.env.step(actions))
 
     def sample_tasks(self) -> tuple[Any, dict]:
         return jax.device_get(self.env.sample_tasks())

@@ -30,6 +30,7 @@ def test_a_known_set_comes_back_as_written_and_an_unknown_one_names_the_sets(mon
         ["experts.py", "--set", "MT11"],
         ["stress_buffers.py", "--set", "MT11"],
         ["render_throughput.py", "--sets", "MT11"],
+        ["profile_adapter.py", "--set", "MT11"],
     ],
 )
 def test_the_scripts_refuse_an_unknown_set_with_a_usage_error(argv, monkeypatch, usage_error):

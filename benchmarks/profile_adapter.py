@@ -1,0 +1,129 @@
+"""Where the Gymnasium adapter's step goes, beyond its jitted step's, at one batch size.
+
+    python benchmarks/profile_adapter.py --set MT10 --batch 131070 --steps 100
+
+One adapter (`make_vector`, NumPy, its default physics) with its episodes staggered as the
+throughput benchmark staggers them, warmed up for `--steps` steps; then `--steps` steps of each
+level below, each step waited for and timed on its own (medians in ms):
+  numpy step     `envs.step`, what a Gymnasium user calls: action checks, the step, the
+                 Gymnasium results (info masks, autoreset fields) and their copy to the host
+  jax step       the adapter under it: the same without the copy to the host
+  jitted step    the adapter's jitted `env.step` alone, called from Python, and waited for
+  launch         how long that call takes to return, before the wait: the host's work of
+                 launching it (XLA's program and MJX-Warp's calls into Warp)
+  actions in     the copy of the actions to the device
+The jitted rollout's own step time is the throughput benchmark's row (the device's time with
+the host running ahead); a step from Python also pays what of its launch the device does not hide.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import statistics
+import time
+from collections.abc import Callable
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from common import (
+    add_concurrent_scenes_argument,
+    build_kernels,
+    provenance,
+    result_path,
+    scene_settings,
+    set_arg,
+    tasks_arg,
+)
+
+import mwjax
+from mwjax.benchmarks import task_names
+from mwjax.env import staggered
+from mwjax.wrappers.gymnasium import make_vector
+
+
+def median_ms(timed: Callable[[np.ndarray], float], actions: np.ndarray) -> float:
+    return 1e3 * statistics.median(timed(action) for action in actions)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument(
+        "--set", type=set_arg, default="MT10", help="a task set or a task (MT10, MT1:pick-place-v3, ...)"
+    )
+    parser.add_argument("--batch", type=int, default=131070, help="total envs (a multiple of the task count)")
+    parser.add_argument("--steps", type=int, default=100, help="warm-up steps, then timed steps per level")
+    add_concurrent_scenes_argument(parser)
+    args = parser.parse_args()
+    n_tasks = len(task_names(tasks_arg(args.set)))
+    if args.batch < n_tasks or args.batch % n_tasks:
+        parser.error(f"--batch must be a positive multiple of the {n_tasks} tasks of {args.set}")
+    scenes = scene_settings(args)
+    kernel_build_s = build_kernels(tasks_arg(args.set), mwjax.PhysicsConfig(**scenes))
+    envs = make_vector(
+        tasks_arg(args.set),
+        envs_per_task=args.batch // n_tasks,
+        seed=0,
+        physics=mwjax.PhysicsConfig(**scenes),
+    )
+    envs.reset(seed=0)
+    adapter = envs.unwrapped
+    adapter.state = staggered(adapter.state, adapter.env.max_episode_steps, jax.random.key(1))
+    actions = np.random.default_rng(0).uniform(-1, 1, (args.steps, envs.num_envs, 4)).astype(np.float32)
+    for action in actions:  # the first step compiles
+        envs.step(action)
+
+    def numpy_step(action: np.ndarray) -> float:
+        start = time.perf_counter()
+        envs.step(action)
+        return time.perf_counter() - start
+
+    def jax_step(action: np.ndarray) -> float:
+        start = time.perf_counter()
+        jax.block_until_ready(adapter.step(action))
+        return time.perf_counter() - start
+
+    launches: list[float] = []
+
+    def jitted_step(action: np.ndarray) -> float:
+        action = jax.block_until_ready(jnp.asarray(action))
+        start = time.perf_counter()
+        state = adapter._step(adapter.state, action)  # the adapter's own program, not a second copy
+        launches.append(time.perf_counter() - start)
+        adapter.state = jax.block_until_ready(state)
+        return time.perf_counter() - start
+
+    def actions_in(action: np.ndarray) -> float:
+        start = time.perf_counter()
+        jax.block_until_ready(jnp.asarray(action))
+        return time.perf_counter() - start
+
+    levels = {
+        "numpy step": median_ms(numpy_step, actions),
+        "jax step": median_ms(jax_step, actions),
+        "jitted step": median_ms(jitted_step, actions),
+    }
+    levels["launch"] = 1e3 * statistics.median(launches)
+    levels["actions in"] = median_ms(actions_in, actions)
+    for name, ms in levels.items():
+        print(
+            f"{name:>12}: {ms:8.2f} ms per step ({envs.num_envs / ms * 1e3:>12,.0f} env steps/s)", flush=True
+        )
+    result = {
+        **provenance(),
+        "set": args.set,
+        "num_envs": envs.num_envs,
+        "steps": args.steps,
+        "physics": str(adapter.env.physics.config),
+        "scenes_together": adapter.env.physics.concurrent_scenes,
+        "kernel_build_s": kernel_build_s,
+        "median_ms_per_step": levels,
+    }
+    out = result_path("profile", f"profile-adapter-{args.set.replace(':', '_')}-{envs.num_envs}", ".json")
+    out.write_text(json.dumps(result, indent=2))
+    print(f"-> {out}")
+
+
+if __name__ == "__main__":
+    main()

@@ -136,6 +136,35 @@ def test_the_adapter_continues_from_a_state_it_is_given(same_step):
         adapter.state = {"obs": np.zeros((4, 39))}
 
 
+def test_numpy_final_obs_is_the_devices_with_only_the_finished_rows_copied(same_step, monkeypatch):
+    """The NumPy adapter copies only the finished envs' rows of `final_obs` from the device and
+    takes the rest from the observation: what it returns must be the device's array, in steps
+    where different envs' episodes end."""
+    from mwjax.wrappers.gymnasium import NumpyVectorEnv
+
+    numpy_env = same_step
+    while not isinstance(numpy_env, NumpyVectorEnv):
+        numpy_env = numpy_env.env
+    inner, dense = numpy_env.env, []
+
+    def step(actions):
+        out = type(inner).step(inner, actions)
+        dense.append(np.asarray(out[4]["final_obs"]))
+        return out
+
+    monkeypatch.setattr(inner, "step", step)
+    same_step.reset(seed=4)
+    adapter = same_step.unwrapped
+    ends = [0, HORIZON - 1, 0, HORIZON - 2]  # envs 1 and 3 end at the first and second step
+    adapter.state = dataclasses.replace(adapter.state, steps=jnp.asarray(ends, adapter.state.steps.dtype))
+    finished = []
+    for _ in range(HORIZON):
+        *_, info = same_step.step(np.random.default_rng(0).uniform(-1, 1, (4, 4)).astype(np.float32))
+        np.testing.assert_array_equal(info["final_obs"], dense[-1])
+        finished.append(np.flatnonzero(info["_final_obs"]).tolist())
+    assert finished == [[1], [3], [0, 2]]
+
+
 def test_same_seed_gives_identical_observations(same_step):
     first = _rollout(same_step, seed=5, steps=4)
     second = _rollout(same_step, seed=5, steps=4)

@@ -236,6 +236,21 @@ class MwjaxVectorEnv(gym.vector.VectorEnv):
         return jnp.concatenate([obs, self._one_hot], axis=-1) if self.use_one_hot else obs
 
 
+@jax.jit
+def _take_rows(values: Array, rows: Array) -> Array:
+    return values[rows]
+
+
+def _with_rows_of(device: Array, host: np.ndarray, rows: np.ndarray) -> np.ndarray:
+    """A copy of `host` with `rows` copied from `device`. The row indices are padded to a power
+    of two, so that the gather compiles for a few sizes, not for every number of rows."""
+    out = host.copy()
+    if rows.size:
+        padded = np.pad(rows, (0, (1 << (rows.size - 1).bit_length()) - rows.size), mode="edge")
+        out[rows] = np.asarray(_take_rows(device, jnp.asarray(padded)))[: rows.size]
+    return out
+
+
 def _masked(values: dict[str, Array], mask: Array) -> dict[str, Array]:
     out: dict[str, Array] = {}
     for key, value in values.items():
@@ -622,13 +637,22 @@ class NumpyVectorEnv(gym.vector.VectorWrapper):
     """NumPy actions in, NumPy results out, with one device-to-host copy of each step's outputs.
     Gymnasium's `JaxToNumpy` converts through DLPack, which fails on the GPU for arrays that
     MJX-Warp's FFI calls produce ("JaxCallableGraphMode.WARP is not supported for JAX CPU FFI
-    calls", H200, 2026-11-21); `jax.device_get` copies them fine."""
+    calls", H200, 2026-11-21); `jax.device_get` copies them fine.
+
+    `info["final_obs"]` differs from the step's observation only in the envs whose episode ended
+    (elsewhere both are the current observation), so only those rows of it are copied: the rest
+    is the observation's host copy. That halves what a step copies to the host."""
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[Any, dict]:
         return jax.device_get(self.env.reset(seed=seed, options=options))
 
     def step(self, actions: Any) -> tuple[Any, Any, Any, Any, dict]:
-        return jax.device_get(self.env.step(actions))
+        obs, reward, terminated, truncated, info = self.env.step(actions)
+        final_obs = info.pop("final_obs", None)
+        obs, reward, terminated, truncated, info = jax.device_get((obs, reward, terminated, truncated, info))
+        if final_obs is not None:
+            info["final_obs"] = _with_rows_of(final_obs, obs, np.flatnonzero(info["_final_obs"]))
+        return obs, reward, terminated, truncated, info
 
     def sample_tasks(self) -> tuple[Any, dict]:
         return jax.device_get(self.env.sample_tasks())

@@ -68,11 +68,12 @@ def _adapter_physics(physics: PhysicsConfig | None, devices: Sequence[jax.Device
     `MWJAX_CONCURRENT_SCENES=0`). Stepped from Python, the adapter's calls get new buffers each
     time, so MJX's default mode captures a new CUDA graph at every call and never replays one; the
     staged mode captures each call once, against fixed staging buffers, and replays it (1.6x the
-    env steps/s at 131,070 MT10 envs, with bounded memory), and side by side the scenes' staged
-    calls copy only the live state (1.8x again at 131,070 MT10 envs, 2.0x at 409,600 MT50 envs;
-    docs/performance.md). Not on the CPU (Warp has no graphs there), over several devices (one
-    graph per traced call would serve them all) or in the deterministic mode (which launches
-    kernels one by one to check their record buffers)."""
+    env steps/s at 131,070 MT10 envs, with bounded memory); side by side, with the scenes'
+    staged calls copying only the live state, 1.8x the scenes in turn at 131,070 MT10 envs and
+    2.0x at 409,600 MT50 envs (first steps from reset; docs/performance.md). Not on the CPU
+    (Warp has no graphs there), over several devices (one graph per traced call would serve them
+    all) or in the deterministic mode (which launches kernels one by one to check their record
+    buffers)."""
     config = physics or PhysicsConfig()
     if config.graph_mode is not None or determinism.enabled() or (devices is not None and len(devices) != 1):
         return config

@@ -635,14 +635,15 @@ def vector_as_env(*bound: Any, **kwargs: Any) -> VectorAsEnv:
 
 
 class NumpyVectorEnv(gym.vector.VectorWrapper):
-    """NumPy actions in, NumPy results out, with one device-to-host copy of each step's outputs.
+    """NumPy actions in, NumPy results out, with one device-to-host copy of each step's outputs
+    (and one of the finished envs' `final_obs` rows).
     Gymnasium's `JaxToNumpy` converts through DLPack, which fails on the GPU for arrays that
     MJX-Warp's FFI calls produce ("JaxCallableGraphMode.WARP is not supported for JAX CPU FFI
     calls", H200, 2026-11-21); `jax.device_get` copies them fine.
 
     `info["final_obs"]` differs from the step's observation only in the envs whose episode ended
-    (elsewhere both are the current observation), so only those rows of it are copied: the rest
-    is the observation's host copy: some 40% less to copy per step."""
+    (elsewhere both are the current observation, `Env._with_final`), so only those rows of it
+    are copied and the rest is the observation's host copy: some 40% less to copy per step."""
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[Any, dict]:
         return jax.device_get(self.env.reset(seed=seed, options=options))

@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import dataclasses
 import importlib.util
-import os
 from collections.abc import Sequence
 from typing import Any
 
@@ -24,7 +23,7 @@ from gymnasium.vector import AutoresetMode
 from mwjax import benchmarks, determinism, rendering, warp_graphs
 from mwjax.config import MAX_EPISODE_STEPS, EnvConfig
 from mwjax.env import Env, State, make
-from mwjax.physics import CONCURRENT_SCENES_VARIABLE, PhysicsConfig, local_device
+from mwjax.physics import PhysicsConfig, local_device, runs_scenes_together
 from mwjax.sharding import ShardedEnv
 
 Array = jax.Array
@@ -80,9 +79,9 @@ def _adapter_physics(physics: PhysicsConfig | None, devices: Sequence[jax.Device
     device = local_device() if devices is None else devices[0]
     if device.platform != "gpu":
         return config
-    together = config.concurrent_scenes
-    if together is None:
-        together = os.environ.get(CONCURRENT_SCENES_VARIABLE, "1") != "0"
+    # Side by side or in turn as the jitted step's default picks on this GPU (the caller's
+    # setting, else MWJAX_CONCURRENT_SCENES), which the staged mode would otherwise turn off.
+    together = runs_scenes_together(dataclasses.replace(config, graph_mode=None), device.platform)
     return dataclasses.replace(config, graph_mode="warp_staged_ex", concurrent_scenes=together)
 
 

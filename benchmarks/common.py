@@ -157,3 +157,17 @@ def build_kernels(tasks: str | list[str], physics: object = None) -> float | Non
     from mwjax import kernels
 
     return kernels.build(tasks, physics).seconds
+
+
+def staggered_vector_env(envs: object) -> object:
+    """`envs` (a `mwjax.make_vector` env) reset with its episodes staggered as `--stagger`
+    staggers the jitted rollout's, so that its steps cost what a long run's do; returns the
+    adapter under its wrappers (its `state`, `step`, `env`)."""
+    import jax
+
+    from mwjax.env import staggered
+
+    envs.reset(seed=0)
+    adapter = envs.unwrapped
+    adapter.state = staggered(adapter.state, adapter.env.max_episode_steps, jax.random.key(1))
+    return adapter

@@ -34,12 +34,12 @@ from common import (
     result_path,
     scene_settings,
     set_arg,
+    staggered_vector_env,
     tasks_arg,
 )
 
 import mwjax
 from mwjax.benchmarks import task_names
-from mwjax.env import staggered
 from mwjax.wrappers.gymnasium import make_vector
 
 
@@ -67,9 +67,7 @@ def main() -> None:
         seed=0,
         physics=mwjax.PhysicsConfig(**scenes),
     )
-    envs.reset(seed=0)
-    adapter = envs.unwrapped
-    adapter.state = staggered(adapter.state, adapter.env.max_episode_steps, jax.random.key(1))
+    adapter = staggered_vector_env(envs)
     actions = np.random.default_rng(0).uniform(-1, 1, (args.steps, envs.num_envs, 4)).astype(np.float32)
     for action in actions:  # the first step compiles
         envs.step(action)

@@ -53,6 +53,7 @@ from common import (
     rows_arg,
     scene_settings,
     set_arg,
+    staggered_vector_env,
     tasks_arg,
 )
 
@@ -240,9 +241,7 @@ def measure_adapter(
         array_type=array_type,
         physics=mwjax.PhysicsConfig(graph_mode=graph_mode, **scenes),
     )
-    envs.reset(seed=0)
-    adapter = envs.unwrapped
-    adapter.state = staggered(adapter.state, adapter.env.max_episode_steps, jax.random.key(1))
+    staggered_vector_env(envs)
     rng = np.random.default_rng(0)
     actions = rng.uniform(-1, 1, size=(steps, envs.num_envs, 4)).astype(np.float32)
     if array_type == "jax":
@@ -376,6 +375,9 @@ def main() -> None:
     args = parser.parse_args()
     if args.stagger is not None and not 1 <= args.stagger <= EPISODE:
         parser.error(f"--stagger must be in [1, {EPISODE}]")
+    if args.adapter_steps is not None and args.adapter_steps < 1:
+        parser.error("--adapter-steps must be a positive number of steps")
+    adapter_window = args.adapter_steps or args.stagger or 100
     if args.plot and importlib.util.find_spec("matplotlib") is None:
         parser.error("--plot needs matplotlib: pip install 'mwjax[plots]'")
     settings = {
@@ -412,8 +414,7 @@ def main() -> None:
             )
             for graph_mode in args.adapter_graph_modes if args.adapter else ():
                 mode = None if graph_mode == "default" else graph_mode
-                window = args.adapter_steps or args.stagger or 100
-                timing = adapter_row(benchmark, total - total % n_tasks, window, mode, scenes)
+                timing = adapter_row(benchmark, total - total % n_tasks, adapter_window, mode, scenes)
                 if "error" in timing:
                     text = f"FAILED: {timing['error']}"
                 else:

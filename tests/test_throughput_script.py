@@ -80,3 +80,8 @@ def test_the_compile_guard_counts_module_folders_not_build_records(throughput, m
     assert throughput.warp_kernel_modules() == 1
     (tmp_path / "wp_module_b").mkdir()
     assert throughput.warp_kernel_modules() == 2
+
+
+def test_an_adapter_window_of_no_steps_is_a_usage_error(throughput, monkeypatch, usage_error):
+    monkeypatch.setattr(sys, "argv", ["throughput.py", "--sets", "MT10", "--adapter", "--adapter-steps", "0"])
+    assert "--adapter-steps must be a positive number of steps" in usage_error(throughput.main)

@@ -36,6 +36,7 @@ from mwjax import (
     scene_streams,
     warp_ast,
     warp_call_ids,
+    warp_callback_gc,
     warp_cpu_graphs,
     warp_empty_args,
     warp_equality,
@@ -52,6 +53,7 @@ warp_graphs.install()
 warp_equality.install()
 warp_empty_args.install()
 warp_call_ids.install()
+warp_callback_gc.install()
 progress.install()
 caches.configure()
 

@@ -55,7 +55,7 @@ import warp as wp
 from jax._src import ffi as jffi
 from warp._src.jax import ffi, xla_ffi
 
-from mwjax import host_call
+from mwjax import host_call, warp_callback_gc
 
 _TARGET = "mwjax_scene_streams"
 # Graphs kept per call and scene (Warp's "warp" mode keeps 32 per callable).
@@ -362,7 +362,7 @@ def _callback(call_frame: Any, is_gpu: bool) -> Any:
         site = _sites[ctypes.cast(attr.value, ctypes.POINTER(ctypes.c_int64)).contents.value]
         inputs = ctypes.cast(frame.args.args, ctypes.c_void_p).value
         outputs = ctypes.cast(frame.rets.rets, ctypes.c_void_p).value
-        with ffi._FFI_CALLBACK_LOCK:
+        with ffi._FFI_CALLBACK_LOCK, warp_callback_gc.held():
             if is_gpu:
                 _run_on_streams(site, frame, inputs, outputs)
             else:

@@ -12,6 +12,10 @@ level below, each step waited for and timed on its own (medians in ms):
   launch         how long that call takes to return, before the wait: the host's work of
                  launching it (XLA's program and MJX-Warp's calls into Warp)
   actions in     the copy of the actions to the device
+  scan of K      per step, K steps in one jitted `lax.scan` of the same `env.step` and physics,
+                 called from Python (`--scan-steps`, 0: not timed): near the jitted step, the
+                 time is in each step itself; near the jitted rollout's step, in starting a
+                 program from Python
 The jitted rollout's own step time is the throughput benchmark's row (the device's time with
 the host running ahead); a step from Python also pays what of its launch the device does not hide.
 """
@@ -23,6 +27,7 @@ import json
 import statistics
 import time
 from collections.abc import Callable
+from typing import Any
 
 import jax
 import jax.numpy as jnp
@@ -39,12 +44,23 @@ from common import (
 )
 
 import mwjax
+from mwjax import warp_graphs
 from mwjax.benchmarks import task_names
 from mwjax.wrappers.gymnasium import make_vector
 
 
 def median_ms(timed: Callable[[np.ndarray], float], actions: np.ndarray) -> float:
     return 1e3 * statistics.median(timed(action) for action in actions)
+
+
+def scanned_steps(step: Callable[..., Any]) -> Callable[..., Any]:
+    """`step` applied along the actions' first axis in one jitted `lax.scan`, donating the state
+    as the adapter's step does (and, like it, traced for calls from Python)."""
+
+    def run(state: Any, actions: jax.Array) -> Any:
+        return jax.lax.scan(lambda s, a: (step(s, a), None), state, actions)[0]
+
+    return warp_graphs.stepped_from_python(jax.jit(run, donate_argnums=0))
 
 
 def main() -> None:
@@ -54,9 +70,14 @@ def main() -> None:
     )
     parser.add_argument("--batch", type=int, default=131070, help="total envs (a multiple of the task count)")
     parser.add_argument("--steps", type=int, default=100, help="warm-up steps, then timed steps per level")
+    parser.add_argument(
+        "--scan-steps", type=int, default=10, help="steps per call of the scan level (0: skip it)"
+    )
     add_concurrent_scenes_argument(parser)
     args = parser.parse_args()
     n_tasks = len(task_names(tasks_arg(args.set)))
+    if args.scan_steps < 0 or (args.scan_steps and args.steps % args.scan_steps):
+        parser.error("--scan-steps must be 0 or divide --steps")
     if args.batch < n_tasks or args.batch % n_tasks:
         parser.error(f"--batch must be a positive multiple of the {n_tasks} tasks of {args.set}")
     scenes = scene_settings(args)
@@ -104,6 +125,18 @@ def main() -> None:
     }
     levels["launch"] = 1e3 * statistics.median(launches)
     levels["actions in"] = median_ms(actions_in, actions)
+    if args.scan_steps:
+        k = args.scan_steps
+        scan = scanned_steps(adapter.env.step)
+        adapter.state = jax.block_until_ready(scan(adapter.state, jnp.asarray(actions[:k])))  # compiles
+
+        def scan_step(chunk: np.ndarray) -> float:
+            chunk = jax.block_until_ready(jnp.asarray(chunk))
+            start = time.perf_counter()
+            adapter.state = jax.block_until_ready(scan(adapter.state, chunk))
+            return (time.perf_counter() - start) / k
+
+        levels[f"scan of {k}"] = median_ms(scan_step, actions.reshape(-1, k, *actions.shape[1:]))
     for name, ms in levels.items():
         print(
             f"{name:>12}: {ms:8.2f} ms per step ({envs.num_envs / ms * 1e3:>12,.0f} env steps/s)", flush=True
@@ -113,6 +146,7 @@ def main() -> None:
         "set": args.set,
         "num_envs": envs.num_envs,
         "steps": args.steps,
+        "scan_steps": args.scan_steps,
         "physics": str(adapter.env.physics.config),
         "scenes_together": adapter.env.physics.concurrent_scenes,
         "kernel_build_s": kernel_build_s,

@@ -42,3 +42,12 @@ def test_the_scripts_refuse_an_unknown_set_with_a_usage_error(argv, monkeypatch,
     script = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(script)
     assert "unknown benchmark 'MT11'" in usage_error(script.main)
+
+
+def test_profile_adapter_refuses_a_scan_that_does_not_divide_the_steps(monkeypatch, usage_error):
+    monkeypatch.syspath_prepend(str(BENCHMARKS))
+    monkeypatch.setattr(sys, "argv", ["profile_adapter.py", "--steps", "100", "--scan-steps", "3"])
+    spec = importlib.util.spec_from_file_location("script_profile_adapter", BENCHMARKS / "profile_adapter.py")
+    script = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(script)
+    assert "--scan-steps must be 0 or divide --steps" in usage_error(script.main)

@@ -17,6 +17,7 @@ any thread.
 from __future__ import annotations
 
 import contextlib
+import functools
 import gc
 import threading
 from collections.abc import Iterator
@@ -27,7 +28,6 @@ from warp._src.jax import ffi
 _lock = threading.Lock()
 _depth = 0  # callbacks running now, across threads
 _was_enabled = False  # the collector's state before the outermost of them
-_installed = False
 
 
 @contextlib.contextmanager
@@ -49,13 +49,9 @@ def held() -> Iterator[None]:
                 gc.enable()
 
 
+@functools.cache  # once per process
 def install() -> None:
-    """Wrap Warp's FFI callback once per process (idempotent)."""
-    global _installed
-    with _lock:
-        if _installed:
-            return
-        _installed = True
+    """Wrap Warp's FFI callback (idempotent)."""
     original = ffi.FfiCallable.ffi_callback
 
     def ffi_callback(self: ffi.FfiCallable, call_frame: Any, platform: str) -> Any:

@@ -9,7 +9,7 @@ its textures' destruction fails ("operation not permitted when stream is capturi
 the capture. With the collector held for the callback's duration, such objects go at the next
 collection outside any callback instead; the callbacks allocate little, so the hold costs
 nothing measurable. Held process-wide (`gc.disable`), since a capture forbids these calls from
-any thread.
+any thread; an explicit `gc.collect()` on another thread still collects.
 
 `install()` wraps Warp's FFI callback; `held()` wraps mwjax's own (`mwjax.scene_streams`).
 """

@@ -80,14 +80,9 @@ def main() -> None:
         parser.error("--scan-steps must be 0 or divide --steps")
     if args.batch < n_tasks or args.batch % n_tasks:
         parser.error(f"--batch must be a positive multiple of the {n_tasks} tasks of {args.set}")
-    scenes = scene_settings(args)
-    kernel_build_s = build_kernels(tasks_arg(args.set), mwjax.PhysicsConfig(**scenes))
-    envs = make_vector(
-        tasks_arg(args.set),
-        envs_per_task=args.batch // n_tasks,
-        seed=0,
-        physics=mwjax.PhysicsConfig(**scenes),
-    )
+    physics = mwjax.PhysicsConfig(**scene_settings(args))
+    kernel_build_s = build_kernels(tasks_arg(args.set), physics)
+    envs = make_vector(tasks_arg(args.set), envs_per_task=args.batch // n_tasks, seed=0, physics=physics)
     adapter = staggered_vector_env(envs)
     actions = np.random.default_rng(0).uniform(-1, 1, (args.steps, envs.num_envs, 4)).astype(np.float32)
     for action in actions:  # the first step compiles

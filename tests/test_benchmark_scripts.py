@@ -36,18 +36,20 @@ def test_a_known_set_comes_back_as_written_and_an_unknown_one_names_the_sets(mon
 def test_the_scripts_refuse_an_unknown_set_with_a_usage_error(argv, monkeypatch, usage_error):
     """Each script's `main` as its command line runs it, in this process (a child process per
     script spent most of half a minute importing JAX beside the rest of the suite)."""
+    assert "unknown benchmark 'MT11'" in usage_error(_script_main(argv, monkeypatch))
+
+
+def test_profile_adapter_refuses_a_scan_that_does_not_divide_the_steps(monkeypatch, usage_error):
+    main = _script_main(["profile_adapter.py", "--steps", "100", "--scan-steps", "3"], monkeypatch)
+    assert "--scan-steps must be 0 or divide --steps" in usage_error(main)
+
+
+def _script_main(argv: list[str], monkeypatch):
+    """The `main` of the script `argv[0]` of benchmarks/, loaded in this process, with `argv` as
+    its command line."""
     monkeypatch.syspath_prepend(str(BENCHMARKS))
     monkeypatch.setattr(sys, "argv", argv)
     spec = importlib.util.spec_from_file_location(f"script_{Path(argv[0]).stem}", BENCHMARKS / argv[0])
     script = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(script)
-    assert "unknown benchmark 'MT11'" in usage_error(script.main)
-
-
-def test_profile_adapter_refuses_a_scan_that_does_not_divide_the_steps(monkeypatch, usage_error):
-    monkeypatch.syspath_prepend(str(BENCHMARKS))
-    monkeypatch.setattr(sys, "argv", ["profile_adapter.py", "--steps", "100", "--scan-steps", "3"])
-    spec = importlib.util.spec_from_file_location("script_profile_adapter", BENCHMARKS / "profile_adapter.py")
-    script = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(script)
-    assert "--scan-steps must be 0 or divide --steps" in usage_error(script.main)
+    return script.main

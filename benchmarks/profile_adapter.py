@@ -16,6 +16,9 @@ level below, each step waited for and timed on its own (medians in ms):
                  called from Python (`--scan-steps`, 0: not timed): near the jitted step, the
                  time is in each step itself; near the jitted rollout's step, in starting a
                  program from Python
+`--graph-mode warp` runs all levels in MJX's default graph mode, the jitted rollout's: its scan
+level against the default's tells what the adapter's staged mode costs (its other levels capture
+their graphs anew at every call from Python, which is why the adapter stages them).
 The jitted rollout's own step time is the throughput benchmark's row (the device's time with
 the host running ahead); a step from Python also pays what of its launch the device does not hide.
 """
@@ -73,6 +76,12 @@ def main() -> None:
     parser.add_argument(
         "--scan-steps", type=int, default=10, help="steps per call of the scan level (0: skip it)"
     )
+    parser.add_argument(
+        "--graph-mode",
+        default=None,
+        help="the adapter's PhysicsConfig.graph_mode (default: its own, on one GPU Warp's staged mode); "
+        "'warp', MJX's default, runs the scan level as the jitted rollout runs its steps",
+    )
     add_concurrent_scenes_argument(parser)
     args = parser.parse_args()
     n_tasks = len(task_names(tasks_arg(args.set)))
@@ -80,7 +89,10 @@ def main() -> None:
         parser.error("--scan-steps must be 0 or divide --steps")
     if args.batch < n_tasks or args.batch % n_tasks:
         parser.error(f"--batch must be a positive multiple of the {n_tasks} tasks of {args.set}")
-    physics = mwjax.PhysicsConfig(**scene_settings(args))
+    try:
+        physics = mwjax.PhysicsConfig(graph_mode=args.graph_mode, **scene_settings(args))
+    except ValueError as e:
+        parser.error(str(e))
     kernel_build_s = build_kernels(tasks_arg(args.set), physics)
     envs = make_vector(tasks_arg(args.set), envs_per_task=args.batch // n_tasks, seed=0, physics=physics)
     adapter = staggered_vector_env(envs)
@@ -147,7 +159,9 @@ def main() -> None:
         "kernel_build_s": kernel_build_s,
         "median_ms_per_step": levels,
     }
-    out = result_path("profile", f"profile-adapter-{args.set.replace(':', '_')}-{envs.num_envs}", ".json")
+    mode = f"-{args.graph_mode.replace('_', '-')}" if args.graph_mode else ""
+    name = f"profile-adapter-{args.set.replace(':', '_')}-{envs.num_envs}{mode}"
+    out = result_path("profile", name, ".json")
     out.write_text(json.dumps(result, indent=2))
     print(f"-> {out}")
 

@@ -21,6 +21,8 @@ Gymnasium adapter (`mwjax.make_vector`, one jitted call and a NumPy transfer per
 batch sizes, with the run's `--concurrent-scenes` / `--scenes-per-call` (absent: the adapter's
 default, on one GPU its scenes side by side, staged), in staggered episodes: it times a window of
 `--adapter-steps` steps after a warm-up of as many, and records its share of the jitted rate.
+`--adapter-only` times the adapter alone, for a batch whose jitted and adapter rows together would
+not fit a 10-minute device call (MT50 at 409,600 envs: each compiles its own programs).
 `--plot` saves the scaling curve (protocol rows only) as a PNG beside the JSON.
 
 On a GPU set XLA_PYTHON_CLIENT_MEM_FRACTION (~0.45) so JAX leaves Warp room.
@@ -279,6 +281,21 @@ def adapter_row(benchmark: str, total: int, steps: int, graph_mode: str | None, 
     return row | {"numpy_transfer_ms_per_step": 1e3 * total * (1 / numpy_rate - 1 / jax_rate)}
 
 
+def jitted_row(benchmark: str, total: int, args: argparse.Namespace, physics: mwjax.PhysicsConfig) -> dict:
+    """The jitted rollout's row, measured in a fresh process, and its line on the console."""
+    row = in_fresh_process(
+        measure, benchmark, total, args.steps, args.repeats, physics, not args.no_warmup, args.stagger
+    )
+    rate = f"{row['env_steps_per_s']:>12,.0f}" if row["env_steps_per_s"] else "     REFUSED"
+    print(
+        f"{benchmark:>20} {row['num_envs']:>7} envs {rate} env steps/s  ({row['protocol']})  "
+        f"compile {row['step_compile_s']:.0f}s  rollouts {[round(t, 1) for t in row['rollout_s']]}s  "
+        f"overflow envs {row['overflow_envs']}" + (f"  refused: {row['refused']}" if row["refused"] else ""),
+        flush=True,
+    )
+    return row
+
+
 def measure_reference(python: str, benchmark: str, steps: int) -> dict:
     script = Path(__file__).with_name("reference_throughput.py")
     command = [*shlex.split(python), str(script), "--set", benchmark, "--steps", str(steps)]
@@ -358,6 +375,12 @@ def main() -> None:
     parser.add_argument("--reference-steps", type=int, default=EPISODE)
     parser.add_argument("--adapter", action="store_true", help="also time the Gymnasium adapter")
     parser.add_argument(
+        "--adapter-only",
+        action="store_true",
+        help="time the Gymnasium adapter alone, no jitted rows (a large set's adapter row in a device "
+        "call of its own)",
+    )
+    parser.add_argument(
         "--adapter-steps",
         type=int,
         default=None,
@@ -378,6 +401,7 @@ def main() -> None:
     if args.adapter_steps is not None and args.adapter_steps < 1:
         parser.error("--adapter-steps must be a positive number of steps")
     adapter_window = args.adapter_steps or args.stagger or 100
+    args.adapter |= args.adapter_only
     if args.plot and importlib.util.find_spec("matplotlib") is None:
         parser.error("--plot needs matplotlib: pip install 'mwjax[plots]'")
     settings = {
@@ -393,25 +417,9 @@ def main() -> None:
     for benchmark in args.sets:
         n_tasks = len(task_names(tasks_arg(benchmark)))
         for total in args.batch:
-            row = in_fresh_process(
-                measure,
-                benchmark,
-                total - total % n_tasks,
-                args.steps,
-                args.repeats,
-                physics,
-                not args.no_warmup,
-                args.stagger,
-            )
-            rows.append(row)
-            rate = f"{row['env_steps_per_s']:>12,.0f}" if row["env_steps_per_s"] else "     REFUSED"
-            print(
-                f"{benchmark:>20} {row['num_envs']:>7} envs {rate} env steps/s  ({row['protocol']})  "
-                f"compile {row['step_compile_s']:.0f}s  rollouts {[round(t, 1) for t in row['rollout_s']]}s  "
-                f"overflow envs {row['overflow_envs']}"
-                + (f"  refused: {row['refused']}" if row["refused"] else ""),
-                flush=True,
-            )
+            row = None if args.adapter_only else jitted_row(benchmark, total - total % n_tasks, args, physics)
+            if row:
+                rows.append(row)
             for graph_mode in args.adapter_graph_modes if args.adapter else ():
                 mode = None if graph_mode == "default" else graph_mode
                 timing = adapter_row(benchmark, total - total % n_tasks, adapter_window, mode, scenes)
@@ -422,7 +430,7 @@ def main() -> None:
                         f"{timing['adapter_numpy_env_steps_per_s']:>12,.0f} env steps/s with NumPy, "
                         f"{timing['adapter_jax_env_steps_per_s']:,.0f} with jax arrays"
                     )
-                    if row["env_steps_per_s"]:  # the adapter's share of the jitted rollout's rate
+                    if row and row["env_steps_per_s"]:  # the adapter's share of the jitted rollout's rate
                         timing["numpy_share_of_jitted"] = (
                             timing["adapter_numpy_env_steps_per_s"] / row["env_steps_per_s"]
                         )
@@ -449,9 +457,11 @@ def main() -> None:
                 f"{ref['cpu_cores']} cores): {ref['env_steps_per_s']:,.0f} env steps/s; {ratio}",
                 flush=True,
             )
-    first = rows[0].pop("provenance")
-    for row in rows[1:] + adapter:
-        row.pop("provenance", None)
+    # The first child's provenance (an adapter that failed in its first process has none).
+    provenances = [row.pop("provenance") for row in rows + adapter if "provenance" in row]
+    if not provenances:
+        sys.exit(f"nothing was measured: {[row.get('error') for row in adapter]}")
+    first = provenances[0]
     result = {
         **first,
         "command": shlex.join(["python", *sys.argv]),

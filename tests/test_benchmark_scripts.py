@@ -44,6 +44,11 @@ def test_profile_adapter_refuses_a_scan_that_does_not_divide_the_steps(monkeypat
     assert "--scan-steps must be 0 or divide --steps" in usage_error(main)
 
 
+def test_profile_adapter_refuses_an_unknown_graph_mode(monkeypatch, usage_error):
+    main = _script_main(["profile_adapter.py", "--graph-mode", "warp_stagd"], monkeypatch)
+    assert "unknown graph_mode 'warp_stagd'" in usage_error(main)
+
+
 def _script_main(argv: list[str], monkeypatch):
     """The `main` of the script `argv[0]` of benchmarks/, loaded in this process, with `argv` as
     its command line."""

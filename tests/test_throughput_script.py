@@ -85,3 +85,27 @@ def test_the_compile_guard_counts_module_folders_not_build_records(throughput, m
 def test_an_adapter_window_of_no_steps_is_a_usage_error(throughput, monkeypatch, usage_error):
     monkeypatch.setattr(sys, "argv", ["throughput.py", "--sets", "MT10", "--adapter", "--adapter-steps", "0"])
     assert "--adapter-steps must be a positive number of steps" in usage_error(throughput.main)
+
+
+def test_adapter_only_measures_no_jitted_row(throughput, monkeypatch, tmp_path):
+    called = []
+
+    def in_fresh_process(function, *args):  # what each child would measure, without the device
+        called.append(function.__name__)
+        rate = {"jax": 2.0, "numpy": 1.0}[args[3]]
+        return {
+            f"adapter_{args[3]}_env_steps_per_s": rate,
+            "provenance": {"device": "dev", "commit": "c", "date": "d"},
+        }
+
+    monkeypatch.setattr(throughput, "in_fresh_process", in_fresh_process)
+    out = tmp_path / "row.json"
+    argv = ["throughput.py", "--sets", "MT10", "--batch", "25", "--adapter-only", "--adapter-steps", "3"]
+    monkeypatch.setattr(sys, "argv", [*argv, "--out", str(out)])
+    throughput.main()
+    assert called == ["measure_adapter", "measure_adapter"]
+    result = json.loads(out.read_text())
+    assert result["results"] == []
+    (row,) = result["adapter"]
+    assert (row["num_envs"], row["adapter_steps"], result["device"]) == (20, 3, "dev")
+    assert "numpy_share_of_jitted" not in row and "provenance" not in row

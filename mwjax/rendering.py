@@ -310,8 +310,7 @@ class Renderer:
             raise ValueError("render rgb, depth or both")
         if lighting not in LIGHTING:
             raise ValueError(f"lighting must be one of {LIGHTING}, got {lighting!r}")
-        if not (isinstance(width, int) and isinstance(height, int) and width > 0 and height > 0):
-            raise ValueError(f"width and height must be positive ints, got {width!r}, {height!r}")
+        width, height = image_size(width, height)
         self.env = env
         self.single_camera = isinstance(camera, (str, int))
         cameras = [camera] if self.single_camera else list(camera)
@@ -739,6 +738,14 @@ def _quat_to_mat_np(q: np.ndarray) -> np.ndarray:
 RENDER_MODES = ("rgb_array", "depth_array")
 
 
+def image_size(width: Any, height: Any) -> tuple[int, int]:
+    """`(width, height)` as ints, or a `ValueError` unless both are positive integers."""
+    sizes = (width, height)
+    if not all(isinstance(v, (int, np.integer)) and not isinstance(v, bool) and v > 0 for v in sizes):
+        raise ValueError(f"width and height must be positive ints, got {width!r}, {height!r}")
+    return int(width), int(height)
+
+
 class GymFrames:
     """Frames for Gymnasium's `render()` with the reference's kwargs: NumPy images of chosen envs
     of an env's current state, `(H, W, 3)` uint8 for `"rgb_array"` and, for `"depth_array"`,
@@ -761,7 +768,9 @@ class GymFrames:
         self.render_mode = render_mode
         self.envs = tuple(int(e) for e in envs)
         self.camera = camera_name_of(camera_name, camera_id)
-        self.width, self.height = width, height
+        # Checked here, as the reference checks its kwargs when the env is made, not at the
+        # first frame.
+        self.width, self.height = image_size(width, height)
         self._renderer: Renderer | None = None
         self._render: Any = None
 

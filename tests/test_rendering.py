@@ -138,6 +138,16 @@ def test_camera_kwargs():
         rendering.camera_name(camera_id=7)
 
 
+@pytest.mark.parametrize("size", [{"width": 0}, {"height": -32}, {"width": 32.0}, {"height": True}])
+def test_image_sizes_that_are_not_positive_ints_are_refused_when_the_env_is_made(size):
+    with pytest.raises(ValueError, match="width and height must be positive ints"):
+        gym.make_vec("mwjax/MT1", env_name="reach-v3", num_envs=1, render_mode="rgb_array", **size)
+
+
+def test_image_sizes_may_be_numpy_ints():
+    assert rendering.image_size(np.int64(48), 32) == (48, 32)
+
+
 @pytest.fixture(scope="module")
 def rollout():
     """A jitted `lax.scan` of pixel observations (32x32, corner) while the hand moves forward."""

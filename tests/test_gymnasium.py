@@ -187,6 +187,9 @@ def test_bad_arguments_are_refused(same_step):
             envs.step(xp.zeros((4, 4), np.int32))
     with pytest.raises(ValueError, match="floating point"):
         same_step.step([[None] * 4] * 4)
+    for bad in (-1, 1.5, True):
+        with pytest.raises(ValueError, match="seed must be a non-negative int"):
+            same_step.reset(seed=bad)
     with pytest.raises(ValueError, match="multiple"):
         gym.make_vec("mwjax/MT10", num_envs=15)
     for bad in (0, -10, 2.5, True):

@@ -85,6 +85,13 @@ def _adapter_physics(physics: PhysicsConfig | None, devices: Sequence[jax.Device
     return dataclasses.replace(config, graph_mode="warp_staged_ex", concurrent_scenes=together)
 
 
+def _seed_key(seed: Any) -> Array:
+    """The key of a `reset(seed=...)`: Gymnasium's seeds are non-negative ints."""
+    if not isinstance(seed, (int, np.integer)) or isinstance(seed, bool) or seed < 0:
+        raise ValueError(f"seed must be a non-negative int, got {seed!r}")
+    return jax.random.key(int(seed))
+
+
 def _check_actions_dtype(dtype: Any) -> None:
     if not np.issubdtype(dtype, np.floating):
         raise ValueError(f"actions must be floating point (the action space is float32), got dtype {dtype}")
@@ -182,7 +189,7 @@ class MwjaxVectorEnv(gym.vector.VectorEnv):
         if options:
             raise ValueError(f"mwjax's vector env takes no reset options, got {sorted(options)}")
         if seed is not None:
-            self._key = jax.random.key(seed)
+            self._key = _seed_key(seed)
             self.action_space.seed(seed)
         self._key, key = jax.random.split(self._key)
         self._state = self._reset(key)
@@ -303,7 +310,7 @@ class _SingleEnv(gym.Env):
     ) -> tuple[np.ndarray, dict]:
         super().reset(seed=seed)
         if seed is not None:
-            self._key = jax.random.key(seed)
+            self._key = _seed_key(seed)
         self._key, key = jax.random.split(self._key)
         self._state = self._reset(key)
         return self._obs(), {}

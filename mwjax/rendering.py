@@ -768,8 +768,7 @@ class GymFrames:
         self.render_mode = render_mode
         self.envs = tuple(int(e) for e in envs)
         self.camera = camera_name_of(camera_name, camera_id)
-        # Checked here, as the reference checks its kwargs when the env is made, not at the
-        # first frame.
+        # Checked when the env is made, not at the first frame, where the renderer is built.
         self.width, self.height = image_size(width, height)
         self._renderer: Renderer | None = None
         self._render: Any = None

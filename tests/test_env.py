@@ -7,6 +7,7 @@ import functools
 import json
 import re
 import warnings
+from pathlib import Path
 
 import jax
 import jax.numpy as jnp
@@ -21,7 +22,7 @@ import mwjax
 from mwjax import benchmarks, policies
 from mwjax.benchmarks import MT10
 from mwjax.env import staggered
-from mwjax.models import MODELS_DIR, constraint_rows, load_scene, scene_names
+from mwjax.models import MODELS_DIR, SCENES_DIR, constraint_rows, load_scene, scene_names
 from mwjax.physics import DROPPED, PhysicsInstabilityWarning, PhysicsOverflowWarning, convex_candidates
 from mwjax.tasks import TASKS as TASKS_REGISTRY
 
@@ -452,6 +453,18 @@ def test_the_device_scene_without_visual_meshes_steps_exactly_as_the_full_scene(
         assert a.ncon == b.ncon
         np.testing.assert_array_equal(a.qpos, b.qpos)
         np.testing.assert_array_equal(a.xpos, b.xpos)
+
+
+@pytest.mark.parametrize("scene", scene_names())
+def test_a_scene_names_its_asset_files_relative_to_itself_and_loads_them_as_mujoco_does(scene):
+    """MJX-Warp embeds the model's sizes in every program, among them the length of its asset
+    paths: absolute paths would make each install path's programs miss JAX's persistent cache."""
+    ours = load_scene(scene)
+    paths = [p.decode() for p in bytes(ours.paths).split(b"\0") if p]
+    assert paths and not any(Path(p).is_absolute() for p in paths), paths
+    theirs = mujoco.MjModel.from_xml_path(str(SCENES_DIR / scene))
+    for field in ("mesh_vert", "mesh_face", "mesh_graph", "tex_data"):
+        np.testing.assert_array_equal(getattr(ours, field), getattr(theirs, field))
 
 
 def test_bad_actions(env, compiled, episode):

@@ -45,7 +45,7 @@ def load_scene(scene: str, mocap_bodies: tuple[str, ...] = (), visual_meshes: bo
     path = SCENES_DIR / scene
     if not path.is_file():
         raise ValueError(f"unknown scene {scene!r}; known: {', '.join(scene_names())}")
-    spec = mujoco.MjSpec.from_file(str(path))
+    spec = _with_assets_in_memory(mujoco.MjSpec.from_file(str(path)))
     for name in mocap_bodies:
         body = spec.body(name)
         if body is None:
@@ -63,6 +63,20 @@ def load_scene(scene: str, mocap_bodies: tuple[str, ...] = (), visual_meshes: bo
     if model.body_mocapid[model.body("mocap").id] != 0:
         raise AssertionError(f"{scene}: the hand's mocap body must be mocap index 0")
     return model
+
+
+def _with_assets_in_memory(spec: mujoco.MjSpec) -> mujoco.MjSpec:
+    """`spec` with its mesh and texture files read into its assets, under their names relative to
+    the scene file. The compiled model then records those relative names (`model.paths`) instead
+    of absolute paths, whose length (`npaths`, and the buffer size that counts it) MJX-Warp embeds
+    in every program: an install at a path of another length would miss JAX's persistent cache."""
+    if spec.meshdir or spec.texturedir:
+        raise AssertionError("the scenes name their asset files relative to the scene file")
+    files = [item.file for items in (spec.meshes, spec.textures, spec.hfields, spec.skins) for item in items]
+    directory = Path(spec.modelfiledir)
+    spec.assets = {name: (directory / name).read_bytes() for name in dict.fromkeys(files) if name}
+    spec.modelfiledir = ""
+    return spec
 
 
 def _exclude_resting_plate(spec: mujoco.MjSpec) -> None:

@@ -45,6 +45,23 @@ def _seeded(env: mwjax.Env, seeds: int | None) -> tuple[Any, Any, jax.Array, tup
     return jax.vmap(env.reset), jax.vmap(env.step), keys, (seeds, env.num_envs)
 
 
+@functools.cache
+def _autoreset_rollout(together: bool, seeds: int | None, per_call: int | None) -> tuple[np.ndarray, ...]:
+    """The reset's and 4 steps' outputs of a 2-step-episode rollout (cached: in turn,
+    `scenes_per_call` goes unused, so the cases that differ only in it share one in-turn rollout)."""
+    physics = mwjax.PhysicsConfig(concurrent_scenes=together, scenes_per_call=per_call)
+    env = mwjax.make(TASKS, envs_per_task=2, seed=4, physics=physics, max_episode_steps=2)
+    reset, step, keys, batch = _seeded(env, seeds)
+    actions = jax.random.uniform(jax.random.key(1), (4, *batch, 4), minval=-1, maxval=1)
+    state, step = jax.jit(reset)(keys), jax.jit(step)
+    out = [np.asarray(x) for x in (state.obs, *jax.tree.leaves(state.physics))]  # the reset's poses
+    for action in actions:  # the episodes end at the second step and restart
+        state = step(state, action)
+        out += [np.asarray(x) for x in (state.obs, state.reward, state.info["physics_overflow"])]
+        out += [np.asarray(x) for x in jax.tree.leaves(state.physics)]
+    return tuple(out)
+
+
 @pytest.mark.skipif(jax.default_backend() != "cpu", reason="bit-for-bit equality holds on the CPU")
 @pytest.mark.parametrize(
     ("seeds", "per_call"),
@@ -54,21 +71,8 @@ def _seeded(env: mwjax.Env, seeds: int | None) -> tuple[Any, Any, jax.Array, tup
 def test_together_steps_equal_separate_calls_through_an_autoreset(seeds: int | None, per_call: int | None):
     """Also under an outer `vmap` (the training examples' seeds), whose rows the physics merges,
     and with a round split into calls (`scenes_per_call`)."""
-
-    def rollout(together: bool) -> list[np.ndarray]:
-        physics = mwjax.PhysicsConfig(concurrent_scenes=together, scenes_per_call=per_call)
-        env = mwjax.make(TASKS, envs_per_task=2, seed=4, physics=physics, max_episode_steps=2)
-        reset, step, keys, batch = _seeded(env, seeds)
-        actions = jax.random.uniform(jax.random.key(1), (4, *batch, 4), minval=-1, maxval=1)
-        state, step = jax.jit(reset)(keys), jax.jit(step)
-        out = [np.asarray(x) for x in (state.obs, *jax.tree.leaves(state.physics))]  # the reset's poses
-        for action in actions:  # the episodes end at the second step and restart
-            state = step(state, action)
-            out += [np.asarray(x) for x in (state.obs, state.reward, state.info["physics_overflow"])]
-            out += [np.asarray(x) for x in jax.tree.leaves(state.physics)]
-        return out
-
-    for ours, theirs in zip(rollout(True), rollout(False), strict=True):
+    together, in_turn = _autoreset_rollout(True, seeds, per_call), _autoreset_rollout(False, seeds, None)
+    for ours, theirs in zip(together, in_turn, strict=True):
         np.testing.assert_array_equal(ours, theirs)
 
 

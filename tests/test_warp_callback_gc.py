@@ -61,7 +61,9 @@ def test_no_collection_starts_inside_a_warp_callback(together: bool, monkeypatch
     env = mwjax.make(TASKS[together], envs_per_task=1, seed=0, physics=physics)
     step = jax.jit(env.step)
     actions = jax.numpy.zeros((env.num_envs, 4))
-    state = jax.block_until_ready(step(env.reset(jax.random.key(0)), actions))  # compiles
+    # Jitted: eagerly, each of the reset's operations would compile a program of its own.
+    state = jax.jit(env.reset)(jax.random.key(0))
+    state = jax.block_until_ready(step(state, actions))  # compiles
     held, state = _collections(step, state, actions)
     assert held["inside"] == 0 and held["outside"] > 0
     # Without the hold, the same steps do collect inside the callbacks: the check above can fail.

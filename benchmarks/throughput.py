@@ -402,6 +402,8 @@ def main() -> None:
         parser.error("--adapter-steps must be a positive number of steps")
     adapter_window = args.adapter_steps or args.stagger or 100
     args.adapter |= args.adapter_only
+    if args.plot and args.adapter_only:
+        parser.error("--plot draws the jitted rows' curve, and --adapter-only measures none")
     if args.plot and importlib.util.find_spec("matplotlib") is None:
         parser.error("--plot needs matplotlib: pip install 'mwjax[plots]'")
     settings = {

@@ -109,3 +109,8 @@ def test_adapter_only_measures_no_jitted_row(throughput, monkeypatch, tmp_path):
     (row,) = result["adapter"]
     assert (row["num_envs"], row["adapter_steps"], result["device"]) == (20, 3, "dev")
     assert "numpy_share_of_jitted" not in row and "provenance" not in row
+
+
+def test_adapter_only_has_no_curve_to_plot(throughput, monkeypatch, usage_error):
+    monkeypatch.setattr(sys, "argv", ["throughput.py", "--sets", "MT10", "--adapter-only", "--plot"])
+    assert "--adapter-only measures none" in usage_error(throughput.main)

@@ -16,9 +16,11 @@ level below, each step waited for and timed on its own (medians in ms):
                  called from Python (`--scan-steps`, 0: not timed): near the jitted step, the
                  time is in each step itself; near the jitted rollout's step, in starting a
                  program from Python
-`--graph-mode warp` runs all levels in MJX's default graph mode, the jitted rollout's: its scan
-level against the default's tells what the adapter's staged mode costs (its other levels capture
-their graphs anew at every call from Python, which is why the adapter stages them).
+`--graph-mode warp` runs the scan level alone in MJX's default graph mode, the jitted rollout's,
+warmed up by scans too: against the default's scan level it tells what the adapter's staged mode
+costs. The other levels cannot run in that mode: each step called from Python captures its graphs
+anew, with their scratch, and at 131,070 MT10 envs the warm-up ran out of device memory (which is
+why the adapter stages them).
 The jitted rollout's own step time is the throughput benchmark's row (the device's time with
 the host running ahead); a step from Python also pays what of its launch the device does not hide.
 """
@@ -80,7 +82,7 @@ def main() -> None:
         "--graph-mode",
         default=None,
         help="the adapter's PhysicsConfig.graph_mode (default: its own, on one GPU Warp's staged mode); "
-        "'warp', MJX's default, runs the scan level as the jitted rollout runs its steps",
+        "'warp', MJX's default, times only the scan level, as the jitted rollout runs its steps",
     )
     add_concurrent_scenes_argument(parser)
     args = parser.parse_args()
@@ -93,12 +95,17 @@ def main() -> None:
         physics = mwjax.PhysicsConfig(graph_mode=args.graph_mode, **scene_settings(args))
     except ValueError as e:
         parser.error(str(e))
+    # In Warp's own mode a step called from Python captures anew: only scans can be timed.
+    scans_only = args.graph_mode == "warp"
+    if scans_only and not args.scan_steps:
+        parser.error("--graph-mode warp times only the scan level: --scan-steps must be positive")
     kernel_build_s = build_kernels(tasks_arg(args.set), physics)
     envs = make_vector(tasks_arg(args.set), envs_per_task=args.batch // n_tasks, seed=0, physics=physics)
     adapter = staggered_vector_env(envs)
     actions = np.random.default_rng(0).uniform(-1, 1, (args.steps, envs.num_envs, 4)).astype(np.float32)
-    for action in actions:  # the first step compiles
-        envs.step(action)
+    if not scans_only:
+        for action in actions:  # the first step compiles
+            envs.step(action)
 
     def numpy_step(action: np.ndarray) -> float:
         start = time.perf_counter()
@@ -125,17 +132,20 @@ def main() -> None:
         jax.block_until_ready(jnp.asarray(action))
         return time.perf_counter() - start
 
-    levels = {
-        "numpy step": median_ms(numpy_step, actions),
-        "jax step": median_ms(jax_step, actions),
-        "jitted step": median_ms(jitted_step, actions),
-    }
-    levels["launch"] = 1e3 * statistics.median(launches)
-    levels["actions in"] = median_ms(actions_in, actions)
+    levels = {}
+    if not scans_only:
+        levels["numpy step"] = median_ms(numpy_step, actions)
+        levels["jax step"] = median_ms(jax_step, actions)
+        levels["jitted step"] = median_ms(jitted_step, actions)
+        levels["launch"] = 1e3 * statistics.median(launches)
+        levels["actions in"] = median_ms(actions_in, actions)
     if args.scan_steps:
         k = args.scan_steps
         scan = scanned_steps(adapter.env.step)
-        adapter.state = jax.block_until_ready(scan(adapter.state, jnp.asarray(actions[:k])))  # compiles
+        chunks = actions.reshape(-1, k, *actions.shape[1:])
+        warm_up = chunks if scans_only else chunks[:1]  # the first call compiles
+        for chunk in warm_up:
+            adapter.state = jax.block_until_ready(scan(adapter.state, jnp.asarray(chunk)))
 
         def scan_step(chunk: np.ndarray) -> float:
             chunk = jax.block_until_ready(jnp.asarray(chunk))
@@ -143,7 +153,7 @@ def main() -> None:
             adapter.state = jax.block_until_ready(scan(adapter.state, chunk))
             return (time.perf_counter() - start) / k
 
-        levels[f"scan of {k}"] = median_ms(scan_step, actions.reshape(-1, k, *actions.shape[1:]))
+        levels[f"scan of {k}"] = median_ms(scan_step, chunks)
     for name, ms in levels.items():
         print(
             f"{name:>12}: {ms:8.2f} ms per step ({envs.num_envs / ms * 1e3:>12,.0f} env steps/s)", flush=True

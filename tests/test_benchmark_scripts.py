@@ -49,6 +49,11 @@ def test_profile_adapter_refuses_an_unknown_graph_mode(monkeypatch, usage_error)
     assert "unknown graph_mode 'warp_stagd'" in usage_error(main)
 
 
+def test_profile_adapter_in_warps_own_graph_mode_needs_the_scan_level(monkeypatch, usage_error):
+    main = _script_main(["profile_adapter.py", "--graph-mode", "warp", "--scan-steps", "0"], monkeypatch)
+    assert "--graph-mode warp times only the scan level" in usage_error(main)
+
+
 def _script_main(argv: list[str], monkeypatch):
     """The `main` of the script `argv[0]` of benchmarks/, loaded in this process, with `argv` as
     its command line."""

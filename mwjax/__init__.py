@@ -12,6 +12,7 @@ import importlib.util
 import os
 from typing import TYPE_CHECKING, Any
 
+from mwjax import device_memory
 from mwjax.wrappers.registration import register_envs
 
 if TYPE_CHECKING:
@@ -25,6 +26,8 @@ if os.environ.get("MWJAX_DETERMINISTIC") == "1":
 
     determinism.enable()
 
+# Before JAX starts its backend: JAX's pool would otherwise leave Warp a quarter of the GPU.
+device_memory.set_default_pool()
 register_envs()
 
 __all__ = ["Env", "EnvConfig", "PhysicsConfig", "State", "make"]

@@ -31,6 +31,7 @@ from mujoco.mjx.third_party.mujoco_warp._src.collision_primitive import _PRIMITI
 from mwjax import (
     caches,
     determinism,
+    device_memory,
     host_call,
     progress,
     scene_streams,
@@ -367,6 +368,7 @@ class Physics:
             )
         self.config = config
         self.concurrent_scenes = runs_scenes_together(config, platform)
+        device_memory.check_pool(local_device())
         from mwjax import kernels  # here: `mwjax.kernels` builds on this module
 
         kernels.prebuild(list(dict.fromkeys((scene, bodies) for scene, bodies, _ in scenes)), config)

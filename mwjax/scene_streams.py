@@ -55,7 +55,7 @@ import warp as wp
 from jax._src import ffi as jffi
 from warp._src.jax import ffi, xla_ffi
 
-from mwjax import host_call, warp_callback_gc
+from mwjax import device_memory, host_call, warp_callback_gc
 
 _TARGET = "mwjax_scene_streams"
 # Graphs kept per call and scene (Warp's "warp" mode keeps 32 per callable).
@@ -371,7 +371,7 @@ def _callback(call_frame: Any, is_gpu: bool) -> Any:
         return xla_ffi.create_ffi_error(
             call_frame.contents.api,
             xla_ffi.XLA_FFI_Error_Code.UNKNOWN,
-            f"mwjax.scene_streams: {type(error).__name__}: {error}",
+            f"mwjax.scene_streams: {type(error).__name__}: {device_memory.explained(error)}",
         )
     return None
 

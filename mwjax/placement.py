@@ -11,6 +11,7 @@ moves (`TaskSpec.settle_per_goal`), computed here per goal variant.
 from __future__ import annotations
 
 import dataclasses
+import functools
 from collections.abc import Mapping, Sequence
 from importlib import resources
 from typing import Any, NamedTuple
@@ -101,14 +102,22 @@ def task_rows(physics: Physics, groups: Sequence[Sequence[TaskSpec]], envs_per_t
     return rows
 
 
-def _load_settled(name: str) -> tuple[Settled, dict[str, np.ndarray]]:
+@functools.cache
+def _recorded_settled_states() -> dict[str, dict[str, np.ndarray]]:
+    """`tasks/settled_states.npz` by task and field, read once per process (read per task, the
+    archive's index cost ~2 s of MT50's `mwjax.make`)."""
     path = resources.files("mwjax.tasks") / "settled_states.npz"
+    states: dict[str, dict[str, np.ndarray]] = {}
     with resources.as_file(path) as file, np.load(file) as archive:
-        fields = {
-            key.split("/", 1)[1]: archive[key].astype(np.float32)
-            for key in archive.files
-            if key.startswith(name + "/")
-        }
+        for key in archive.files:
+            if "/" in key:  # "<task>/<field>"; the rest is the recording's provenance
+                task, field = key.split("/", 1)
+                states.setdefault(task, {})[field] = archive[key].astype(np.float32)
+    return states
+
+
+def _load_settled(name: str) -> tuple[Settled, dict[str, np.ndarray]]:
+    fields = dict(_recorded_settled_states().get(name, {}))
     if not fields:
         raise ValueError(f"no settled state recorded for {name!r}")
     kin = Kinematics(*(jnp.asarray(fields[f]) for f in Kinematics._fields))
@@ -143,7 +152,16 @@ def with_settled_variants(
             settle = jax.jit(
                 lambda vs, g=g, parts=parts: _settle(physics, g, list(zip(parts, vs, strict=True)))
             )
-            _SETTLED_PER_VARIANT[key] = stored_results.run(settle, [jnp.asarray(v) for v in vecs])
+            # Keyed by what `settle` closes over beyond mwjax's files: scene, bodies, settings and
+            # tasks (the goal vectors are its argument), so a stored read traces nothing.
+            described = f"placement._settle {key[:3]!r} tasks {[rows[i].spec.name for i in members]}"
+            template = Settled(Kinematics(*(0,) * len(Kinematics._fields)), 0)
+            _SETTLED_PER_VARIANT[key] = stored_results.run(
+                settle,
+                [jnp.asarray(v) for v in vecs],
+                described_by=described,
+                out_tree=jax.tree.structure([template] * len(members)),
+            )
         for i, settled in zip(members, _SETTLED_PER_VARIANT[key], strict=True):
             rows[i] = dataclasses.replace(rows[i], settled_per_variant=settled)
     return rows

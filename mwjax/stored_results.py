@@ -13,6 +13,10 @@ each time), and two processes with the same seed started their episodes from dif
 key is the lowered program (everything the computation closes over, the model and the physics
 settings included), its arguments, the device kind, the versions of JAX, jaxlib, Warp, MuJoCo and
 MJX, and mwjax's files (`caches.sources_digest`); a changed program, input or version is a new entry.
+Tracing and lowering a program only to find its key took most of a stored read (~7 of MT50's ~10 s
+in `mwjax.make` on the CPU), so a caller that can name what its program closes over passes that
+description instead (`described_by`, with the result's tree): the program is then traced only when
+it has to run.
 `MWJAX_NO_CACHE=1` turns this off with JAX's cache (`mwjax.caches`). Every edit of mwjax's files
 makes new entries, so the directory keeps the most recently used ones up to `LIMIT_BYTES`.
 """
@@ -36,7 +40,7 @@ import mujoco
 import numpy as np
 import warp
 
-from mwjax import caches
+from mwjax import caches, determinism
 
 # Writes under way; the interpreter waits for them at exit (they are not daemon threads).
 _writes: list[threading.Thread] = []
@@ -50,18 +54,36 @@ def directory() -> Path:
     return caches.user_cache_dir() / "results"
 
 
-def run(jitted: Any, *args: Any) -> Any:
+def run(jitted: Any, *args: Any, described_by: str | None = None, out_tree: Any = None) -> Any:
     """`jitted(*args)` (a `jax.jit` function), read from disk if this computation was stored;
     otherwise computed, and stored once its result is ready (in a thread: this returns at once,
-    as the call would)."""
-    lowered = jitted.lower(*args)
+    as the call would).
+
+    `described_by`, with `out_tree` (the result's `jax.tree.structure`), keys the entry by that
+    text instead of the lowered program: it must name everything `jitted` closes over that
+    mwjax's files do not fix (settings, models chosen, sizes not in `args`). JAX's x64 mode and
+    `mwjax.determinism` are added here."""
     if not caches.enabled():
-        return lowered.compile()(*args)
-    path = directory() / f"{_key(lowered, args)}.npz"
-    stored = _load(path, lowered)
+        return jitted(*args)
+    if described_by is None:
+        lowered = jitted.lower(*args)
+        program, out_tree = lowered.as_text(debug_info=False), lowered.out_tree
+        expected = [(info.shape, info.dtype) for info in jax.tree.leaves(lowered.out_info)]
+        compute = lambda: lowered.compile()(*args)  # noqa: E731 - traced once, not twice
+    else:
+        if out_tree is None:
+            raise ValueError("described_by needs out_tree, the structure of the result")
+        x64 = jax.config.jax_enable_x64
+        program = f"described: {described_by}; x64 {x64}; deterministic {determinism.enabled()}"
+        expected = None
+        compute = lambda: jitted(*args)  # noqa: E731
+    path = directory() / f"{_key(program, args)}.npz"
+    stored = _load(path, out_tree, expected)
     if stored is not None:
         return stored
-    result = lowered.compile()(*args)
+    result = compute()
+    if jax.tree.structure(result) != out_tree:
+        raise ValueError(f"out_tree {out_tree} does not describe the result, {jax.tree.structure(result)}")
     write = threading.Thread(target=_store, args=(path, result), name="mwjax-store-result")
     write.start()
     _writes.append(write)
@@ -74,9 +96,9 @@ def wait() -> None:
         _writes.pop().join()
 
 
-def _key(lowered: Any, args: tuple[Any, ...]) -> str:
+def _key(program: str, args: tuple[Any, ...]) -> str:
     digest = hashlib.sha256()
-    digest.update(lowered.as_text(debug_info=False).encode())
+    digest.update(program.encode())
     for leaf in jax.tree.leaves(args):
         value = np.asarray(leaf)
         digest.update(f"{value.dtype}{value.shape}".encode())
@@ -97,23 +119,25 @@ def _mjx_version() -> str:
         return "unknown"
 
 
-def _load(path: Path, lowered: Any) -> Any | None:
-    """The stored result at `path` as the program's output tree, or None when there is none or
-    it does not have the program's output shapes (a damaged file is computed again)."""
+def _load(path: Path, out_tree: Any, expected: list[tuple[Any, Any]] | None) -> Any | None:
+    """The stored result at `path` as a tree of structure `out_tree`, or None when there is none,
+    it has another number of leaves, or (where `expected` lists them) other shapes and dtypes:
+    a damaged file is computed again."""
     try:
         with np.load(path) as archive:
             leaves = [archive[f"leaf{i}"] for i in range(len(archive.files))]
     except (OSError, ValueError, KeyError):
         return None
-    expected = jax.tree.leaves(lowered.out_info)
-    if len(leaves) != len(expected) or any(
-        leaf.shape != info.shape or leaf.dtype != info.dtype
-        for leaf, info in zip(leaves, expected, strict=True)
+    if len(leaves) != out_tree.num_leaves:
+        return None
+    if expected is not None and any(
+        (leaf.shape, leaf.dtype) != (tuple(shape), dtype)
+        for leaf, (shape, dtype) in zip(leaves, expected, strict=True)
     ):
         return None
     with contextlib.suppress(OSError):
         os.utime(path)  # used now: the last to go when the directory is trimmed
-    return jax.tree.unflatten(lowered.out_tree, [jnp.asarray(leaf) for leaf in leaves])
+    return jax.tree.unflatten(out_tree, [jnp.asarray(leaf) for leaf in leaves])
 
 
 def _store(path: Path, result: Any) -> None:

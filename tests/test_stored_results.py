@@ -119,3 +119,36 @@ def test_the_least_recently_used_entries_go_when_the_directory_is_full(cache_hom
     stored_results.run(_program(3.0), x)  # a third entry: the one least recently used goes
     assert oldest in _stored(cache_home) and second not in _stored(cache_home)
     assert len(_stored(cache_home)) == 2
+
+
+def test_a_described_result_is_read_back_without_tracing_its_program(cache_home):
+    traced = []
+
+    def program(scale):
+        def f(x):
+            traced.append(scale)
+            return {"a": jnp.sin(x) * scale, "b": [jnp.cumsum(x), x.astype(jnp.int32)]}
+
+        return jax.jit(f)
+
+    x = jnp.linspace(0.0, 3.0, 7)
+    tree = jax.tree.structure({"a": 0, "b": [0, 0]})
+    computed = stored_results.run(program(2.0), x, described_by="scale 2", out_tree=tree)
+    assert traced == [2.0] and len(_stored(cache_home)) == 1
+    read = stored_results.run(program(2.0), x, described_by="scale 2", out_tree=tree)
+    assert traced == [2.0]  # read from disk: not traced again
+    for got, want in zip(jax.tree.leaves(read), jax.tree.leaves(computed), strict=True):
+        assert got.dtype == want.dtype
+        np.testing.assert_array_equal(np.asarray(got), np.asarray(want))
+    # Another description or input is another entry; the description, not the program, is the key.
+    stored_results.run(program(3.0), x, described_by="scale 3", out_tree=tree)
+    stored_results.run(program(2.0), x + 1, described_by="scale 2", out_tree=tree)
+    assert traced == [2.0, 3.0, 2.0] and len(_stored(cache_home)) == 3
+
+
+def test_a_description_must_come_with_the_results_structure(cache_home):
+    x = jnp.arange(3.0)
+    with pytest.raises(ValueError, match="needs out_tree"):
+        stored_results.run(_program(2.0), x, described_by="scale 2")
+    with pytest.raises(ValueError, match="does not describe the result"):
+        stored_results.run(_program(2.0), x, described_by="scale 2", out_tree=jax.tree.structure([0, 0]))

@@ -74,8 +74,12 @@ def check_pool(device: object) -> None:
     global _warned
     if _warned or getattr(device, "platform", None) != "gpu" or not _preallocates():
         return
-    stats = device.memory_stats() or {}  # type: ignore[attr-defined]
-    message = pool_warning(int(stats.get("bytes_limit", 0)), gpu_memory_bytes(device))
+    try:
+        stats = device.memory_stats() or {}  # type: ignore[attr-defined]
+        total = gpu_memory_bytes(device)
+    except (AttributeError, RuntimeError, TypeError, ValueError):
+        return  # a device that cannot report its memory gets no warning, and the env is made
+    message = pool_warning(int(stats.get("bytes_limit", 0)), total)
     if message:
         _warned = True
         warnings.warn(message, DeviceMemoryWarning, stacklevel=3)

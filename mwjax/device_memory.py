@@ -18,6 +18,7 @@ from __future__ import annotations
 import os
 import sys
 import warnings
+from collections.abc import MutableMapping
 
 FRACTION_VARIABLE = "XLA_PYTHON_CLIENT_MEM_FRACTION"
 # Any of these means the user chose how JAX takes memory.
@@ -31,7 +32,7 @@ _HINT = (
 )
 
 
-def set_default_pool(environ: dict[str, str] | None = None) -> bool:
+def set_default_pool(environ: MutableMapping[str, str] | None = None) -> bool:
     """Set JAX's pool to `DEFAULT_FRACTION` of the GPU unless the user chose a memory setting or
     JAX's backend already started (then the variable would be read by no one). Returns whether
     it set it."""
